@@ -1,0 +1,54 @@
+"""pinlin: linear state-space models of multibody systems, checked against MuJoCo.
+
+Typical use::
+
+    import pinlin
+    scene = pinlin.Scene.load("urdf/double_pendulum.toml")
+    model = pinlin.linearize(scene)          # LinearModel: A, B, C, D, M, C_damp, K, Bu
+    print(pinlin.modal(model))               # eigenvalues, wn, zeta, mode shapes
+"""
+
+from .exceptions import (
+    EquilibriumError,
+    ModelError,
+    ModelFileError,
+    PinlinError,
+    RobotLoadError,
+    SceneError,
+    ShapeError,
+    UnknownNameError,
+    UnknownRobotError,
+    UrdfError,
+)
+from .linear_model import LinearModel
+from .linearization import linearize, operating_point
+from .modal import ModalAnalysis, modal
+from .operating_point import OperatingPoint
+from .scene import Effects, Scene, Spring
+from .system import System
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Effects",
+    "EquilibriumError",
+    "LinearModel",
+    "ModalAnalysis",
+    "ModelError",
+    "ModelFileError",
+    "OperatingPoint",
+    "PinlinError",
+    "RobotLoadError",
+    "Scene",
+    "SceneError",
+    "ShapeError",
+    "Spring",
+    "System",
+    "UnknownNameError",
+    "UnknownRobotError",
+    "UrdfError",
+    "__version__",
+    "linearize",
+    "modal",
+    "operating_point",
+]

@@ -1,0 +1,159 @@
+"""Command-line interface: ``pinlin linearize``, ``pinlin robots``.
+
+Bad input never produces a traceback: the error goes to stderr as one line and the exit status
+is 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import ModelFileError, PinlinError
+
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (argparse prints the usage first by default)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise _UsageError(f"{self.prog}: {message} (see '{self.prog} --help')")
+
+
+class _UsageError(Exception):
+    pass
+
+
+def _check_out(path: Path) -> None:
+    """Refuse an --out path before any work, so that a failure writes nothing."""
+    if path.suffix not in (".npz", ".mat", ".json"):
+        raise ModelFileError(path, f"unknown model format '{path.suffix}'; expected .npz, .mat "
+                                   "or .json")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise ModelFileError(path, f"cannot write: folder '{parent}' does not exist")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise ModelFileError(path, "cannot write: permission denied")
+
+
+def _fmt(values: np.ndarray) -> str:
+    return np.array2string(np.asarray(values), precision=6, suppress_small=True,
+                           max_line_width=100)
+
+
+def _print_operating_point(model, system) -> None:
+    op = model.operating_point
+    print(f"scene '{model.name}': nq = {system.nq}, nv = {system.nv}, "
+          f"{model.n_inputs} inputs, {model.n_outputs} outputs; base {model.info['base']}")
+    effects = model.info["effects"]
+    print(f"effects in play: {', '.join(effects) if effects else 'none'}")
+    print(f"linear model: {model.info['formulation']} coordinates, "
+          f"{model.info['derivatives']} derivatives"
+          + (f" (step {model.info['step']:g})" if "step" in model.info else ""))
+    print("operating point:")
+    for name, j in system.joints.items():
+        values = op.q[j.idx_q:j.idx_q + j.nq]
+        shown = (f"{float(np.arctan2(values[1], values[0])):.6g} (angle)" if j.continuous
+                 else _fmt(values) if j.nq > 1 else f"{values[0]:.6g}")
+        print(f"  q[{name}] = {shown}")
+    for name, u in zip(model.input_names, op.u, strict=True):
+        print(f"  {name} = {u:.6g}")
+    worst = float(np.abs(op.residual).max(initial=0.0))
+    state = "equilibrium" if op.equilibrium else "NOT an equilibrium"
+    print(f"  residual max |r| = {worst:.3e} (tolerance {op.tolerance:.1e}): {state}")
+    for note in op.notes:
+        print(f"  note: {note}")
+
+
+def _cmd_linearize(args: argparse.Namespace) -> int:
+    from .linear_model import LinearModel  # noqa: F401  (import cost paid before the work)
+    from .linearization import linearize
+    from .modal import modal
+    from .scene import Scene
+
+    out = Path(args.out) if args.out else None
+    if out is not None:
+        _check_out(out)
+    scene = Scene.resolve(args.target)
+    model = linearize(scene, formulation=args.formulation, derivatives=args.derivatives,
+                      step=args.step,
+                      allow_non_equilibrium=True if args.allow_non_equilibrium else None)
+    _print_operating_point(model, scene.system)
+    print()
+    print(modal(model, method=args.method))
+    if args.matrices:
+        with np.printoptions(precision=6, suppress=True, linewidth=120):
+            for key in ("A", "B", "C", "D"):
+                print(f"\n{key} =\n{getattr(model, key)}")
+    if out is not None:
+        model.save(out)
+        print(f"\nmodel written to {out}")
+    return 0
+
+
+def _cmd_robots(args: argparse.Namespace) -> int:
+    from .robots import load_robot, loadable_robots
+
+    status = loadable_robots()
+    ok = [n for n, reason in status.items() if reason is None]
+    print(f"{len(ok)} of {len(status)} example-robot-data robots load:")
+    for name in ok:
+        rm = load_robot(name)
+        base = "floating" if rm.free_flyer else "fixed"
+        armature = "armature" if np.any(rm.model.armature) else ""
+        print(f"  {name:28s} nq = {rm.model.nq:3d}  nv = {rm.model.nv:3d}  {base:8s} {armature}")
+    failed = {n: r for n, r in status.items() if r is not None}
+    if failed:
+        print("do not load here:")
+        for name, reason in failed.items():
+            print(f"  {name:28s} {reason}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .derivatives import BACKENDS
+    from .formulations import FORMULATIONS
+    from .modal import METHODS
+
+    parser = _Parser(prog="pinlin", description="Linear models of multibody systems.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    lin = sub.add_parser("linearize", help="linearize a scene and print its modes")
+    lin.add_argument("target", metavar="SCENE_OR_ROBOT",
+                     help="scene .toml, .urdf, bundled scene name or example-robot-data robot")
+    lin.add_argument("--formulation", choices=FORMULATIONS, default="independent")
+    lin.add_argument("--derivatives", choices=BACKENDS, default="analytic")
+    lin.add_argument("--step", type=float, default=None,
+                     help="finite-difference step for fd3/fd5 [rad, m, rad/s, m/s]")
+    lin.add_argument("--method", choices=METHODS, default="auto", help="eigensolver")
+    lin.add_argument("--allow-non-equilibrium", action="store_true",
+                     help="linearize even if the inputs cannot hold q0 at rest")
+    lin.add_argument("--matrices", action="store_true", help="print A, B, C, D")
+    lin.add_argument("--out", metavar="FILE", help="save the model (.npz, .mat or .json)")
+    lin.set_defaults(func=_cmd_linearize)
+    rob = sub.add_parser("robots", help="list the example-robot-data robots that load")
+    rob.set_defaults(func=_cmd_robots)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``pinlin`` console script; returns the exit status."""
+    try:
+        args = build_parser().parse_args(argv)
+        return int(args.func(args))
+    except _UsageError as exc:
+        print(str(exc), file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except PinlinError as exc:
+        message = " ".join(str(exc).split())
+        print(f"pinlin: error: {message}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,120 @@
+"""Derivatives of the equations of motion at an operating point (chapter 9.1.1 and 9.2).
+
+The residual form of the equations of motion is::
+
+    H(q, v, a, u) = rnea(q, v, a) - tau_spring(q) - tau_damping(v) - S u = 0
+
+so that M = dH/da, K = dH/d(dq), C = dH/dv and Bu = S, where dq is the tangent-space
+perturbation q = ``pin.integrate(q0, dq)``. Backends:
+
+- ``analytic``: Pinocchio's ``computeRNEADerivatives`` (which also returns M).
+- ``fd3``: central differences, O(h^2) (eq. 9.54/9.56).
+- ``fd5``: five-point central differences, O(h^4) (eq. 9.55).
+
+Numerical backends perturb q on the manifold with ``pin.integrate`` and take M from
+``pin.crba`` (H is linear in a, so its derivative there needs no step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from .exceptions import PinlinError
+from .operating_point import OperatingPoint
+from .system import System
+
+BACKENDS = ("analytic", "fd3", "fd5")
+#: Default steps (dimensionless in SI units: [rad or m] for q, [rad/s or m/s] for v).
+DEFAULT_STEPS = {"fd3": 1e-5, "fd5": 5e-4}
+
+_STENCILS = {
+    "fd3": ((1.0, 0.5), (-1.0, -0.5)),
+    "fd5": ((-2.0, 1.0 / 12), (-1.0, -8.0 / 12), (1.0, 8.0 / 12), (2.0, -1.0 / 12)),
+}
+
+
+@dataclass(frozen=True)
+class SecondOrderTerms:
+    """Second-order matrices at an operating point (nv x nv each).
+
+    Attributes:
+        M: Mass matrix [kg or kg*m^2] (armature included).
+        K: Stiffness dH/d(dq) [N*m/rad, N/m].
+        C: Velocity matrix dH/dv [N*m*s/rad, N*s/m], or None when it is structurally zero
+            (at rest, v = 0, the Coriolis matrix vanishes; without damping nothing else is there).
+        backend: Name of the backend that produced them.
+    """
+
+    M: np.ndarray
+    K: np.ndarray
+    C: np.ndarray | None
+    backend: str
+
+
+def velocity_terms(system: System, op: OperatingPoint) -> bool:
+    """Whether dH/dv can be non-zero: damping present or a non-zero velocity."""
+    return system.has_damping or bool(np.any(op.v))
+
+
+def second_order_terms(system: System, op: OperatingPoint, backend: str = "analytic",
+                       step: float | None = None) -> SecondOrderTerms:
+    """M, K, C at ``op`` from the chosen backend."""
+    if backend == "analytic":
+        return _analytic(system, op)
+    if backend in _STENCILS:
+        h = DEFAULT_STEPS[backend] if step is None else float(step)
+        if not (np.isfinite(h) and h > 0):
+            raise PinlinError(f"finite-difference step must be a positive number, got {step!r}")
+        return _numerical(system, op, backend, h)
+    raise PinlinError(f"unknown derivatives backend '{backend}'; expected one of "
+                      f"{', '.join(BACKENDS)}")
+
+
+def _analytic(system: System, op: OperatingPoint) -> SecondOrderTerms:
+    model, data = system.model, system.data
+    dtau_dq, dtau_dv, M = pin.computeRNEADerivatives(model, data, op.q, op.v, op.a)
+    K = np.array(dtau_dq)
+    if system.has_springs:
+        # Springs act on 1-DoF joints, where d(difference)/d(dq) = 1.
+        K[np.diag_indices_from(K)] += system.stiffness
+    C = None
+    if velocity_terms(system, op):
+        C = np.array(dtau_dv)
+        C[np.diag_indices_from(C)] += system.damping
+    return SecondOrderTerms(np.array(M), K, C, "analytic")
+
+
+def residual_forces(system: System, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """H without the input term: rnea(q, v, a) - tau_spring(q) - tau_damping(v) [N*m or N]."""
+    tau = pin.rnea(system.model, system.data, q, v, a).copy()
+    if system.has_springs:
+        tau -= system.spring_torque(q)
+    if system.has_damping:
+        tau += system.damping * v
+    return tau
+
+
+def _numerical(system: System, op: OperatingPoint, backend: str, h: float) -> SecondOrderTerms:
+    model, nv = system.model, system.nv
+    stencil = _STENCILS[backend]
+    K = np.zeros((nv, nv))
+    C = np.zeros((nv, nv)) if velocity_terms(system, op) else None
+    e = np.zeros(nv)
+    for j in range(nv):
+        e[j] = 1.0
+        col = np.zeros(nv)
+        for k, w in stencil:
+            col += w * residual_forces(system, pin.integrate(model, op.q, k * h * e), op.v, op.a)
+        K[:, j] = col / h
+        if C is not None:
+            col = np.zeros(nv)
+            for k, w in stencil:
+                col += w * residual_forces(system, op.q, op.v + k * h * e, op.a)
+            C[:, j] = col / h
+        e[j] = 0.0
+    M = pin.crba(model, system.data, op.q).copy()
+    M = np.triu(M) + np.triu(M, 1).T
+    return SecondOrderTerms(M, K, C, backend)

@@ -1,0 +1,107 @@
+"""Independent coordinates (chapter 9.1.1) for open chains, where R = I and z = q.
+
+With H_z = K, H_z' = C and H_z'' = M (eqs. 9.8-9.11 with R = I), eq. 9.57 in Rowell's form is::
+
+    x = [dq; v],   A = [[0, I], [-M^-1 K, -M^-1 C]],   B = [[0], [M^-1 S]]
+
+M^-1 comes from ``pin.computeMinverse`` (one O(n^2) recursion, no factorization), so one matrix
+product gives the whole lower block row. At v = 0 the upper block row is exactly [0 I] also on
+Lie groups (d/dt of ``difference(q0, q)`` equals v at q = q0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ..derivatives import second_order_terms
+from ..exceptions import ModelError
+from ..linear_model import LinearModel
+from ..operating_point import OperatingPoint
+from ..system import System
+
+
+def mass_inverse(system: System, q: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """M^-1 at q, checked: a joint carrying no inertia makes M singular.
+
+    Raises:
+        ModelError: M is not positive definite (names the first coordinate without inertia).
+    """
+    Minv = np.array(pin.computeMinverse(system.model, system.data, q))
+    diag = np.diag(M)
+    if not (np.all(np.isfinite(Minv)) and np.all(diag > 0.0)):
+        bad = int(np.argmin(np.where(np.isfinite(diag), diag, -np.inf)))
+        raise ModelError(f"scene '{system.scene.name}': the mass matrix is singular at q0: "
+                         f"coordinate '{system.coordinate_names[bad]}' carries no inertia "
+                         f"(M[{bad},{bad}] = {diag[bad]:.3g}); give the bodies it moves mass "
+                         "or armature")
+    return Minv
+
+
+def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.ndarray,
+                                                                  list[str], np.ndarray]:
+    """C, D, output names and output values y0 at the operating point.
+
+    Joint outputs read the state; frame outputs are world positions whose Jacobian is the linear
+    part of the LOCAL_WORLD_ALIGNED frame Jacobian. y0 holds frame positions [m] and, for joint
+    coordinates, ``difference(neutral, q0)`` (the joint value for 1-DoF joints) and v0.
+    """
+    nv, nu = system.nv, len(system.actuated)
+    spec = system.outputs
+    if spec is None:
+        return np.eye(2 * nv), np.zeros((2 * nv, nu)), system.state_names, np.zeros(2 * nv)
+    p = len(spec.names)
+    C = np.zeros((p, 2 * nv))
+    y0 = np.zeros(p)
+    x0 = np.concatenate([pin.difference(system.model, pin.neutral(system.model), op.q), op.v])
+    for row, col in spec.state_rows:
+        C[row, col] = 1.0
+        y0[row] = x0[col]
+    if spec.frames:
+        model, data = system.model, system.data
+        pin.computeJointJacobians(model, data, op.q)
+        pin.updateFramePlacements(model, data)
+        for row, fid in spec.frames:
+            J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            C[row:row + 3, :nv] = J[:3]
+            y0[row:row + 3] = data.oMf[fid].translation
+    return C, np.zeros((p, nu)), list(spec.names), y0
+
+
+def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
+                          step: float | None = None) -> LinearModel:
+    """Linear model of an open chain about ``op`` in independent (joint) coordinates."""
+    nv = system.nv
+    terms = second_order_terms(system, op, derivatives, step)
+    Minv = mass_inverse(system, op.q, terms.M)
+    A = np.zeros((2 * nv, 2 * nv))
+    A[:nv, nv:] = np.eye(nv)
+    if terms.C is None:
+        A[nv:, :nv] = -(Minv @ terms.K)
+        C_damp = np.zeros((nv, nv))
+    else:
+        A[nv:] = -(Minv @ np.hstack([terms.K, terms.C]))
+        C_damp = terms.C
+    B = np.zeros((2 * nv, len(system.actuated)))
+    B[nv:] = Minv[:, system.actuated]
+    Bu = np.zeros((nv, len(system.actuated)))
+    Bu[system.actuated, np.arange(len(system.actuated))] = 1.0
+    C, D, out_names, y0 = output_matrices(system, op)
+    op_with_y = OperatingPoint(op.q, op.v, op.u, op.a, op.residual, op.equilibrium,
+                               op.tolerance, y0, op.lam, op.notes)
+    info = {
+        "formulation": "independent",
+        "derivatives": terms.backend,
+        "effects": system.scene.effects.in_play(),
+        "velocity_terms": terms.C is not None,
+        "base": "free" if system.base_joint else "fixed",
+        "notes": list(op.notes),
+    }
+    if step is not None or terms.backend != "analytic":
+        from ..derivatives import DEFAULT_STEPS
+
+        info["step"] = step if step is not None else DEFAULT_STEPS[terms.backend]
+    return LinearModel(A=A, B=B, C=C, D=D, state_names=system.state_names,
+                       input_names=system.input_names, output_names=out_names,
+                       M=terms.M, C_damp=C_damp, K=terms.K, Bu=Bu, operating_point=op_with_y,
+                       name=system.scene.name, info=info)

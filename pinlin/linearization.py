@@ -1,0 +1,74 @@
+"""``pinlin.linearize``: scene in, :class:`~pinlin.linear_model.LinearModel` out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .derivatives import BACKENDS
+from .exceptions import PinlinError, SceneError, ShapeError
+from .formulations import FORMULATIONS, linearize_independent
+from .linear_model import LinearModel
+from .operating_point import OperatingPoint, configuration, hold_at_rest
+from .scene import Scene
+from .system import System
+
+
+def operating_point(system: System, *, q: np.ndarray | None = None,
+                    allow_non_equilibrium: bool | None = None) -> OperatingPoint:
+    """The operating point the scene asks for (``q`` replaces the whole configuration)."""
+    spec = system.scene.operating_point
+    if q is None:
+        q0 = configuration(system)
+    else:
+        q0 = np.asarray(q, dtype=float)
+        if q0.shape != (system.nq,):
+            raise ShapeError(f"q must have nq = {system.nq} entries for scene "
+                             f"'{system.scene.name}', got shape {q0.shape}")
+        if not np.all(np.isfinite(q0)):
+            raise ShapeError("q contains NaN or inf")
+        if not pin.isNormalized(system.model, q0, 1e-6):
+            raise ShapeError("q is not normalized: its quaternion or (cos, sin) parts must have "
+                             "unit norm")
+    allow = spec.allow_non_equilibrium if allow_non_equilibrium is None else allow_non_equilibrium
+    return hold_at_rest(system, q0, allow_non_equilibrium=allow)
+
+
+def linearize(scene: Scene | System | str | Path, *, formulation: str = "independent",
+              derivatives: str = "analytic", step: float | None = None,
+              q: np.ndarray | None = None, allow_non_equilibrium: bool | None = None
+              ) -> LinearModel:
+    """Linear state-space model of a scene about its operating point.
+
+    Args:
+        scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
+            robot name. A scene caches its system, so repeated calls skip the model loading.
+        formulation: ``"independent"`` (chapter 9.1.1).
+        derivatives: ``"analytic"`` (Pinocchio), ``"fd3"`` or ``"fd5"`` (chapter 9.2).
+        step: Finite-difference step for ``fd3``/``fd5`` [rad, m, rad/s, m/s].
+        q: Full configuration (size nq) replacing the scene's operating point.
+        allow_non_equilibrium: Override the scene's ``operating_point.allow_non_equilibrium``.
+
+    Returns:
+        The model, with x = [dq; v] (names ``q:<coordinate>``, ``v:<coordinate>``), inputs
+        ``u:<coordinate>`` and the scene's outputs.
+    """
+    if isinstance(scene, str | Path):
+        scene = Scene.resolve(scene)
+    system = scene if isinstance(scene, System) else scene.system
+    if formulation not in FORMULATIONS:
+        raise PinlinError(f"unknown formulation '{formulation}'; expected one of "
+                          f"{', '.join(FORMULATIONS)}")
+    if derivatives not in BACKENDS:
+        raise PinlinError(f"unknown derivatives '{derivatives}'; expected one of "
+                          f"{', '.join(BACKENDS)}")
+    if system.scene.operating_point.solve != "inputs":
+        raise SceneError(system.scene.source, "operating_point.solve",
+                         f"'{system.scene.operating_point.solve}' is not supported for this scene")
+    op = operating_point(system, q=q, allow_non_equilibrium=allow_non_equilibrium)
+    if formulation != "independent":
+        raise PinlinError(f"formulation '{formulation}' needs closed loops, which this version "
+                          "does not support yet; use 'independent'")
+    return linearize_independent(system, op, derivatives=derivatives, step=step)

@@ -1,0 +1,292 @@
+"""Modal analysis of a linear model: eigenvalues, natural frequencies, damping, mode shapes.
+
+Two solvers:
+
+- **symmetric**: when the model has no velocity-dependent terms (C_damp = 0) and a symmetric
+  stiffness, the 2n eigenvalues of A are +-sqrt(-w2) for the n eigenvalues w2 of the symmetric
+  definite pencil (K, M) (``scipy.linalg.eigh``, mass-normalized shapes phi). Right and left
+  eigenvectors of A follow in closed form: r = [phi; lam phi], l = [M phi / 2; M phi / (2 lam)*]
+  with l^H r = 1. A zero w2 (rigid-body mode) is a 2x2 Jordan block of A: its pair of vectors is
+  the chain [phi; 0], [0; phi] with left vectors [M phi; 0], [0; M phi].
+- **general**: ``scipy.linalg.eig(A, left=True)`` of size 2n, left vectors scaled to l^H r = 1,
+  and the eigenvalue condition numbers kappa = |l| |r| / |l^H r|.
+
+Conventions: wn = |lam| [rad/s], zeta = -Re(lam) / |lam|. Eigenvalues with |lam| <= rigid_tol are
+rigid-body (zero) modes: wn = 0 and zeta = NaN by definition (never computed as 0/0), labelled
+"rigid" in the table. The default rigid_tol is 1e-6 * max(1, largest |lam|) [rad/s], well above
+the O(sqrt(eps) |lam|max) spread that rounding gives a zero eigenvalue of a Jordan block.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .exceptions import PinlinError
+from .linear_model import LinearModel
+
+METHODS = ("auto", "symmetric", "general")
+RIGID_RTOL = 1e-6
+SYMMETRY_RTOL = 1e-8
+
+
+def symmetric_applicable(model: LinearModel) -> bool:
+    """Whether the (K, M) path applies: second-order model, C_damp = 0, K symmetric, B, A
+    consistent with them (no E)."""
+    if not model.has_second_order or model.E is not None:
+        return False
+    if model.info.get("velocity_terms", True) and np.any(model.C_damp):
+        return False
+    K = model.K
+    scale = max(float(np.abs(K).max(initial=0.0)), np.finfo(float).tiny)
+    return float(np.abs(K - K.T).max(initial=0.0)) <= SYMMETRY_RTOL * scale
+
+
+@dataclass(frozen=True, eq=False)
+class ModalAnalysis:
+    """Eigen-analysis of a linear model; print it for a table.
+
+    Attributes:
+        eigenvalues: 2n eigenvalues, by increasing |lam|, conjugate pairs adjacent (+Im first).
+        right_vectors: Right eigenvectors of A as columns (Jordan chains for rigid modes).
+        shapes: Mode shapes in the coordinates (position part of the right vectors), each scaled
+            so that its largest entry is exactly 1.
+        coordinate_names: Names of the shape entries.
+        wn: Natural frequency |lam| [rad/s] (0 for rigid modes).
+        zeta: Damping ratio -Re(lam)/|lam| (NaN for rigid modes).
+        rigid: Mask of rigid-body (zero) eigenvalues.
+        rigid_tol: Threshold used for ``rigid`` [rad/s].
+        method: ``"symmetric"`` or ``"general"``.
+        model: The analysed model.
+    """
+
+    eigenvalues: np.ndarray
+    right_vectors: np.ndarray
+    shapes: np.ndarray
+    coordinate_names: tuple[str, ...]
+    wn: np.ndarray
+    zeta: np.ndarray
+    rigid: np.ndarray
+    rigid_tol: float
+    method: str
+    model: LinearModel
+    _left: np.ndarray | None = None
+    _mass_shapes: np.ndarray | None = None
+
+    # ----------------------------------------------------------------------------------------
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        """Natural frequencies wn / 2 pi [Hz]."""
+        return self.wn / (2.0 * np.pi)
+
+    @property
+    def unstable(self) -> np.ndarray:
+        """Mask of eigenvalues with Re(lam) > rigid_tol (exponentially growing modes)."""
+        return self.eigenvalues.real > self.rigid_tol
+
+    @property
+    def is_stable(self) -> bool:
+        """No eigenvalue with a positive real part beyond the tolerance."""
+        return not bool(np.any(self.unstable))
+
+    @functools.cached_property
+    def left_vectors(self) -> np.ndarray:
+        """Left eigenvectors as columns, scaled so that l_i^H r_i = 1."""
+        if self._left is not None:
+            return self._left
+        return _symmetric_left(self.eigenvalues, self._mass_shapes, self.rigid)
+
+    @functools.cached_property
+    def condition(self) -> np.ndarray:
+        """Eigenvalue condition numbers |l| |r| / |l^H r| (1 for a normal matrix; large values
+        mean the eigenvalue is sensitive to perturbations of A; inf at a Jordan block)."""
+        L, R = self.left_vectors, self.right_vectors
+        dots = np.abs(np.einsum("ij,ij->j", L.conj(), R))
+        norms = np.linalg.norm(L, axis=0) * np.linalg.norm(R, axis=0)
+        with np.errstate(divide="ignore"):
+            kappa = np.where(dots > 0, norms / np.where(dots > 0, dots, 1.0), np.inf)
+        if self.method == "symmetric":
+            kappa = np.where(self.rigid, np.inf, kappa)  # Jordan blocks are defective
+        return kappa
+
+    def dominant(self, index: int, threshold: float = 0.5, limit: int = 3) -> list[str]:
+        """Names of the coordinates whose |shape| entry is at least ``threshold`` in mode
+        ``index``, largest first."""
+        mag = np.abs(self.shapes[:, index])
+        order = np.argsort(-mag, kind="stable")
+        return [self.coordinate_names[k] for k in order[:limit] if mag[k] >= threshold]
+
+    def modes(self) -> list[int]:
+        """Indices of one eigenvalue per mode: conjugate pairs and rigid pairs counted once."""
+        keep: list[int] = []
+        skip: set[int] = set()
+        lam = self.eigenvalues
+        for i in range(len(lam)):
+            if i in skip:
+                continue
+            keep.append(i)
+            if i + 1 < len(lam) and (
+                # A rigid DoF of a mechanical model is a 2x2 Jordan block: two zero eigenvalues.
+                (self.rigid[i] and self.rigid[i + 1] and self.model.has_second_order)
+                or (abs(lam[i].imag) > self.rigid_tol
+                    and abs(lam[i + 1] - lam[i].conjugate()) <= 1e-9 * max(1.0, abs(lam[i])))
+            ):
+                skip.add(i + 1)
+        return keep
+
+    def kind(self, index: int) -> str:
+        lam = self.eigenvalues[index]
+        if self.rigid[index]:
+            return "rigid"
+        if lam.real > self.rigid_tol:
+            return "unstable" if abs(lam.imag) <= self.rigid_tol else "unstable osc."
+        if abs(lam.imag) > self.rigid_tol:
+            return "oscillatory" if lam.real < -self.rigid_tol else "undamped"
+        return "real"
+
+    def table(self) -> str:
+        """A readable table with one row per mode."""
+        head = (f"{'#':>3}  {'eigenvalue [1/s]':>28}  {'wn [rad/s]':>11}  {'f [Hz]':>10}  "
+                f"{'zeta':>8}  {'kind':<13}  dominant coordinates")
+        lines = [f"Modes of '{self.model.name}' ({self.method} eigensolver, "
+                 f"{len(self.eigenvalues)} eigenvalues, rigid below {self.rigid_tol:.1e} rad/s)",
+                 head, "-" * len(head)]
+        for n, i in enumerate(self.modes(), start=1):
+            lam = self.eigenvalues[i]
+            if self.rigid[i]:
+                ev, wn, f, zeta = "0 (rigid)", "0", "0", "-"
+            else:
+                im = abs(lam.imag)
+                ev = (f"{lam.real:+.6g} +- {im:.6g}j" if im > self.rigid_tol
+                      else f"{lam.real:+.6g}")
+                wn, f = f"{self.wn[i]:.6g}", f"{self.wn[i] / (2 * np.pi):.6g}"
+                zeta = f"{self.zeta[i]:.4g}"
+            dom = ", ".join(self.dominant(i))
+            lines.append(f"{n:>3}  {ev:>28}  {wn:>11}  {f:>10}  {zeta:>8}  {self.kind(i):<13}  "
+                         f"{dom}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.table()
+
+
+# --------------------------------------------------------------------------------------------
+def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None = None
+          ) -> ModalAnalysis:
+    """Eigenvalues, frequencies, damping ratios and mode shapes of ``model``.
+
+    Args:
+        model: A linear model (mechanical or linear graph).
+        method: ``"auto"`` (symmetric when :func:`symmetric_applicable`, else general),
+            ``"symmetric"`` or ``"general"``.
+        rigid_tol: |lam| below which an eigenvalue is a rigid-body mode [rad/s]; default
+            ``1e-6 * max(1, max |lam|)``.
+    """
+    if method not in METHODS:
+        raise PinlinError(f"unknown eigensolver method '{method}'; expected one of "
+                          f"{', '.join(METHODS)}")
+    if model.E is not None and np.any(model.E):
+        model = model.standard_form()
+    use_symmetric = symmetric_applicable(model) if method == "auto" else method == "symmetric"
+    if use_symmetric and not symmetric_applicable(model):
+        raise PinlinError(f"model '{model.name}' has velocity terms or a non-symmetric stiffness: "
+                          "the symmetric (K, M) eigensolver does not apply; use method='general'")
+    if use_symmetric:
+        return _symmetric(model, rigid_tol)
+    return _general(model, rigid_tol)
+
+
+def _coordinate_names(model: LinearModel, n: int) -> tuple[str, ...]:
+    names = model.state_names[:n]
+    return tuple(s[2:] if s.startswith("q:") else s for s in names)
+
+
+def _normalize_shapes(shapes: np.ndarray) -> np.ndarray:
+    out = np.array(shapes, dtype=complex)
+    if out.size == 0:
+        return out
+    idx = np.argmax(np.abs(out), axis=0)
+    pivot = out[idx, np.arange(out.shape[1])]
+    pivot = np.where(np.abs(pivot) > 0, pivot, 1.0)
+    return out / pivot
+
+
+def _rigid_tol(magnitudes: np.ndarray, rigid_tol: float | None) -> float:
+    if rigid_tol is not None:
+        if not (np.isfinite(rigid_tol) and rigid_tol >= 0):
+            raise PinlinError(f"rigid_tol must be a finite number >= 0 [rad/s], got {rigid_tol!r}")
+        return float(rigid_tol)
+    return RIGID_RTOL * max(1.0, float(magnitudes.max(initial=0.0)))
+
+
+def _frequencies(lam: np.ndarray, rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    wn = np.where(rigid, 0.0, np.abs(lam))
+    safe = np.where(rigid, 1.0, wn)
+    zeta = np.where(rigid, np.nan, -lam.real / safe) + 0.0  # no "-0"
+    return wn, zeta
+
+
+def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
+    n = model.M.shape[0]
+    K = 0.5 * (model.K + model.K.T)
+    w2, phi = sla.eigh(K, model.M)  # phi^T M phi = I
+    tol = _rigid_tol(np.sqrt(np.abs(w2)), rigid_tol)
+    order = np.argsort(np.abs(w2), kind="stable")
+    w2, phi = w2[order], phi[:, order]
+    rigid_mode = np.sqrt(np.abs(w2)) <= tol
+    root = np.sqrt(np.abs(w2)).astype(complex)
+    root = np.where(w2 >= 0, 1j * root, root)           # +i w (stable) or +sigma (unstable)
+    root = np.where(rigid_mode, 0.0, root)
+    lam = np.empty(2 * n, dtype=complex)
+    lam[0::2], lam[1::2] = root, -root
+    # Unstable pairs: list -sigma after +sigma is fine; keep +Im first for oscillatory pairs.
+    R = np.zeros((2 * n, 2 * n), dtype=complex)
+    R[:n, 0::2] = phi
+    R[:n, 1::2] = phi
+    R[n:, 0::2] = np.where(rigid_mode, 0.0, root) * phi
+    R[n:, 1::2] = np.where(rigid_mode, 1.0, -root) * phi
+    R[:n, 1::2] = np.where(rigid_mode, 0.0, 1.0) * phi   # Jordan chain [phi; 0], [0; phi]
+    rigid = np.repeat(rigid_mode, 2)
+    wn, zeta = _frequencies(lam, rigid)
+    shapes = _normalize_shapes(np.repeat(phi, 2, axis=1))
+    return ModalAnalysis(lam, R, shapes, _coordinate_names(model, n), wn, zeta, rigid, tol,
+                         "symmetric", model, None, model.M @ phi)
+
+
+def _symmetric_left(lam: np.ndarray, mphi: np.ndarray, rigid: np.ndarray) -> np.ndarray:
+    n = mphi.shape[0]
+    L = np.zeros((2 * n, 2 * n), dtype=complex)
+    rigid_mode = rigid[0::2]
+    for k in range(n):
+        m = mphi[:, k]
+        if rigid_mode[k]:
+            L[:n, 2 * k] = m
+            L[n:, 2 * k + 1] = m
+            continue
+        for col in (2 * k, 2 * k + 1):
+            L[:n, col] = 0.5 * m
+            L[n:, col] = np.conj(1.0 / (2.0 * lam[col])) * m
+    return L
+
+
+def _general(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
+    A = model.A
+    lam, vl, vr = sla.eig(A, left=True, right=True)
+    tol = _rigid_tol(np.abs(lam), rigid_tol)
+    # Sort by |lam|, then Re, then +Im first: LAPACK returns conjugate pairs of a real matrix
+    # as exact conjugates, so each pair ties on (|lam|, Re) and lands adjacent.
+    order = np.lexsort((-lam.imag, lam.real, np.abs(lam)))
+    lam, vl, vr = lam[order], vl[:, order], vr[:, order]
+    dots = np.einsum("ij,ij->j", vl.conj(), vr)
+    ok = np.abs(dots) > np.finfo(float).eps
+    vl = np.where(ok, vl / np.where(ok, dots, 1.0).conj(), vl)
+    rigid = np.abs(lam) <= tol
+    lam = np.where(rigid, 0.0, lam)
+    wn, zeta = _frequencies(lam, rigid)
+    n = model.n_states // 2 if model.has_second_order else model.n_states
+    shapes = _normalize_shapes(vr[:n])
+    return ModalAnalysis(lam, vr, shapes, _coordinate_names(model, n), wn, zeta, rigid, tol,
+                         "general", model, vl, None)

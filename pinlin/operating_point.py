@@ -1,0 +1,165 @@
+"""Operating points: the configuration q0 a scene asks for and the inputs u0 that hold it.
+
+For ``solve = "inputs"`` the system is at rest (v = 0, v' = 0) and the actuators must supply the
+generalized force tau = g(q0) - tau_spring(q0), g being Pinocchio's generalized gravity. The
+actuated coordinates take their share as u0; what falls on unactuated coordinates is the
+residual. A non-zero residual means q0 is not an equilibrium: pinlin refuses to linearize there
+unless the scene opts in with ``allow_non_equilibrium``, in which case the model describes the
+motion about the state (q0, v = 0), whose acceleration a0 = -M^-1 residual is reported.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .exceptions import EquilibriumError, SceneError
+from .system import FREE_FLYER, SPHERICAL, JointInfo, System, _one_dof_config
+
+
+@dataclass(frozen=True, eq=False)
+class OperatingPoint:
+    """The point a linear model is taken about.
+
+    Attributes:
+        q: Configuration, size nq (Pinocchio convention; quaternions as [x, y, z, w]).
+        v: Velocity, size nv [rad/s or m/s].
+        u: Inputs, generalized forces on the actuated coordinates [N*m or N].
+        a: Acceleration at (q, v, u), size nv: zero at an equilibrium.
+        residual: Generalized force the inputs cannot supply, per coordinate [N*m or N].
+        equilibrium: Whether the residual is zero within ``tolerance``.
+        tolerance: Residual tolerance used [N*m or N].
+        y: Output values at the point (frame positions [m], joint values).
+        lam: Constraint forces (closed loops); None for open chains.
+        notes: Human-readable remarks (e.g. an opted-in non-equilibrium).
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    u: np.ndarray
+    a: np.ndarray
+    residual: np.ndarray
+    equilibrium: bool
+    tolerance: float
+    y: np.ndarray | None = None
+    lam: np.ndarray | None = None
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain-Python form (lists) for JSON export."""
+        out: dict[str, Any] = {}
+        for key in ("q", "v", "u", "a", "residual", "y", "lam"):
+            val = getattr(self, key)
+            out[key] = None if val is None else np.asarray(val).tolist()
+        out.update(equilibrium=self.equilibrium, tolerance=self.tolerance, notes=list(self.notes))
+        return out
+
+
+def configuration(system: System, spec: Mapping[str, Any] | None = None) -> np.ndarray:
+    """q0: the reference posture with the scene's joint positions applied.
+
+    Raises:
+        SceneError: unknown joint, wrong number of values, non-unit quaternion.
+    """
+    q = system.q_ref.copy()
+    spec = system.scene.operating_point.q if spec is None else spec
+    for name, value in spec.items():
+        fld = f"operating_point.q.{name}"
+        j = system.joint(name, fld)
+        q[j.idx_q:j.idx_q + j.nq] = _joint_configuration(system, j, value, q, fld)
+    return q
+
+
+def _joint_configuration(system: System, j: JointInfo, value: Any, q: np.ndarray,
+                         fld: str) -> np.ndarray:
+    src = system.scene.source
+    current = q[j.idx_q:j.idx_q + j.nq].copy()
+    if isinstance(value, float | int):
+        if j.nv != 1:
+            raise SceneError(src, fld, f"joint '{j.name}' ({j.kind}) has {j.nq} configuration "
+                                       f"values; give a list of {j.nq} or a table")
+        return _one_dof_config(j, float(value))
+    if isinstance(value, tuple):
+        if len(value) != j.nq:
+            raise SceneError(src, fld, f"joint '{j.name}' ({j.kind}) has {j.nq} configuration "
+                                       f"values, got {len(value)}")
+        raw = np.array(value, dtype=float)
+        quat = _quaternion_slice(j)
+        if quat is not None and abs(np.linalg.norm(raw[quat]) - 1.0) > 1e-6:
+            raise SceneError(src, fld, "the quaternion part [x, y, z, w] must have unit norm, "
+                                       f"got {np.linalg.norm(raw[quat]):.6g}")
+        if j.continuous and abs(np.hypot(*raw) - 1.0) > 1e-6:
+            raise SceneError(src, fld, "a continuous joint's (cos, sin) pair must have unit norm")
+        return raw
+    # A table: position / rpy / quaternion for free-flyer or spherical joints.
+    quat_slice = _quaternion_slice(j)
+    if quat_slice is None:
+        raise SceneError(src, fld, f"a table (position, rpy, quaternion) needs a free-flyer or "
+                                   f"spherical joint; '{j.name}' is {j.kind}")
+    if "position" in value:
+        if j.kind != FREE_FLYER:
+            raise SceneError(src, f"{fld}.position", "only a free-flyer joint has a position")
+        current[:3] = value["position"]
+    if "rpy" in value:
+        rot = pin.rpy.rpyToMatrix(*value["rpy"])
+        current[quat_slice] = pin.Quaternion(rot).coeffs()
+    elif "quaternion" in value:
+        current[quat_slice] = value["quaternion"]
+    return current
+
+
+def _quaternion_slice(j: JointInfo) -> slice | None:
+    if j.kind == FREE_FLYER:
+        return slice(3, 7)
+    if j.kind == SPHERICAL:
+        return slice(0, 4)
+    return None
+
+
+def residual_tolerance(tau_scale: float) -> float:
+    """Residual below which a generalized force counts as zero [N*m or N]."""
+    return 1e-9 * max(1.0, tau_scale)
+
+
+def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool = False
+                 ) -> OperatingPoint:
+    """Inputs u0 that hold q0 at rest (``solve = "inputs"``).
+
+    Raises:
+        EquilibriumError: some unactuated coordinate carries a generalized force the inputs
+            cannot cancel and ``allow_non_equilibrium`` is False. The message names the worst
+            coordinate and the residual.
+    """
+    model, data = system.model, system.data
+    if not np.all(np.isfinite(q0)):
+        raise SceneError(system.scene.source, "operating_point.q", "q0 contains NaN or inf")
+    gravity = pin.computeGeneralizedGravity(model, data, q0)
+    tau = gravity - system.spring_torque(q0) if system.has_springs else gravity.copy()
+    u0 = tau[system.actuated]
+    residual = tau.copy()
+    residual[system.actuated] = 0.0
+    tol = residual_tolerance(float(np.abs(gravity).max(initial=0.0)))
+    worst = int(np.argmax(np.abs(residual))) if residual.size else 0
+    equilibrium = bool(residual.size == 0 or abs(residual[worst]) <= tol)
+    notes: list[str] = []
+    a0 = np.zeros(system.nv)
+    if not equilibrium:
+        name = system.coordinate_names[worst]
+        if not allow_non_equilibrium:
+            raise EquilibriumError(
+                f"scene '{system.scene.name}': q0 is not an equilibrium: the inputs cannot "
+                f"supply {residual[worst]:.6g} N or N*m along '{name}' (largest unactuated "
+                f"residual, tolerance {tol:.1e}); actuate it, change q0, or set "
+                "operating_point.allow_non_equilibrium = true",
+                residual, system.coordinate_names)
+        # M a0 + g = S u0 + tau_spring and S u0 = g - tau_spring - residual: a0 = -M^-1 residual.
+        a0 = pin.aba(model, data, q0, np.zeros(system.nv), gravity - residual)
+        notes.append(f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
+                     f"'{name}', the model describes the motion about (q0, v = 0) with "
+                     f"|a0| = {np.linalg.norm(a0):.6g}")
+    return OperatingPoint(q=q0, v=np.zeros(system.nv), u=u0, a=a0, residual=residual,
+                          equilibrium=equilibrium, tolerance=tol, notes=tuple(notes))

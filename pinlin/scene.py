@@ -1,0 +1,430 @@
+"""Scenes: a robot plus the physical effects, operating point, inputs and outputs in play.
+
+A scene is read from TOML (:meth:`Scene.load`), built for an example-robot-data robot
+(:meth:`Scene.from_robot`) or for a bare URDF (:meth:`Scene.from_urdf`). Only the effects a scene
+lists are simulated. Every field is checked here for type, finiteness and range; names of joints
+and frames are checked against the robot when the :class:`~pinlin.system.System` is built.
+
+File format (paths relative to the scene file)::
+
+    name = "double_pendulum"
+    urdf = "double_pendulum.urdf"        # or: robot = "ur5"
+    base = "fixed"                       # or "free"
+
+    [effects]                            # only what is listed is simulated
+    gravity = [0.0, 0.0, -9.81]          # [m/s^2], or true for standard gravity along -z
+    armature = { shoulder = 0.01 }       # [kg*m^2] or [kg]; true: from the robot's SRDF
+    damping = { shoulder = 0.5 }         # viscous [N*m*s/rad] or [N*s/m]; true: URDF <dynamics>
+    springs = { shoulder = { stiffness = 20.0, rest = 0.0 } }   # [N*m/rad], [rad]
+
+    [operating_point]
+    q = { shoulder = 0.3 }               # [rad] or [m]; others: reference posture or neutral
+    solve = "inputs"                     # u0 that holds q0 at rest
+    allow_non_equilibrium = false        # true: linearize even if q0 cannot be held
+
+    [inputs]
+    actuated = "all"                     # or a list of joint names
+
+    [outputs]                            # absent: the whole state is the output
+    frames = ["tip"]                     # frame positions in the world frame [m]
+    joints = ["shoulder", "q:elbow", "v:elbow"]   # name: position and velocity
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from .exceptions import SceneError, UnknownRobotError
+
+STANDARD_GRAVITY = (0.0, 0.0, -9.81)
+
+_TOP_KEYS = ("name", "urdf", "robot", "base", "effects", "operating_point", "inputs", "outputs")
+_EFFECT_KEYS = ("gravity", "armature", "damping", "springs")
+_PLANNED_EFFECTS = ("rotation", "mimic")
+_OP_KEYS = ("q", "solve", "allow_non_equilibrium")
+_SOLVE_MODES = ("inputs",)
+
+
+@dataclass(frozen=True)
+class Spring:
+    """A linear joint spring: torque = -stiffness * (q - rest).
+
+    Attributes:
+        stiffness: [N*m/rad] for rotational joints, [N/m] for prismatic ones; >= 0.
+        rest: Rest position [rad] or [m].
+    """
+
+    stiffness: float
+    rest: float = 0.0
+
+
+JointValues = Mapping[str, float | tuple[float, ...]]
+
+
+@dataclass(frozen=True)
+class Effects:
+    """The physical effects a scene calls for; anything absent is not simulated.
+
+    Attributes:
+        gravity: Gravity vector in the world frame [m/s^2], or None for no gravity.
+        armature: Rotor inertia added to the diagonal of M, per joint [kg*m^2] or [kg]; True takes
+            it from the robot's SRDF rotor parameters; None: no armature.
+        damping: Viscous joint damping per joint [N*m*s/rad] or [N*s/m]; True takes the URDF
+            ``<dynamics damping>`` values; None: no damping.
+        springs: Joint springs by joint name; None: no springs.
+    """
+
+    gravity: tuple[float, float, float] | None = None
+    armature: JointValues | bool | None = None
+    damping: JointValues | bool | None = None
+    springs: Mapping[str, Spring] | None = None
+
+    def in_play(self) -> list[str]:
+        """Names of the effects present, in a fixed order."""
+        return [k for k in _EFFECT_KEYS if getattr(self, k) not in (None, False, {})]
+
+
+@dataclass(frozen=True)
+class OperatingPointSpec:
+    """Where to linearize.
+
+    Attributes:
+        q: Joint positions by joint name: a number ([rad] or [m]; for a continuous joint the
+            angle), a list of the joint's raw configuration values, or for a free-flyer or
+            spherical joint a table ``{position = [x, y, z], rpy = [r, p, y]}`` /
+            ``{quaternion = [x, y, z, w]}``. Joints not named keep the reference posture.
+        solve: ``"inputs"``: find the inputs u0 that hold q0 at rest.
+        allow_non_equilibrium: Linearize about (q0, v = 0, u0) even when u0 cannot hold q0.
+    """
+
+    q: Mapping[str, Any] = field(default_factory=dict)
+    solve: str = "inputs"
+    allow_non_equilibrium: bool = False
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Requested outputs.
+
+    Attributes:
+        frames: Frame names whose world position [m] is an output (3 rows each).
+        joints: ``"name"`` (position and velocity), ``"q:name"`` or ``"v:name"``.
+    """
+
+    frames: tuple[str, ...] = ()
+    joints: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A robot and everything needed to linearize it. Build with :meth:`load`,
+    :meth:`from_robot`, :meth:`from_urdf` or :meth:`from_dict`.
+
+    Attributes:
+        name: Scene name, used for reports and default file names.
+        urdf: URDF file (absolute), or None when ``robot`` is given.
+        robot: example-robot-data robot name, or None.
+        base: ``"fixed"`` or ``"free"`` (floating base, 6 velocity coordinates in the base frame).
+        effects: Effects in play.
+        operating_point: Operating point specification.
+        inputs: ``"all"`` (every joint except a floating base) or the actuated joint names.
+        outputs: Requested outputs, or None for the full state.
+        source: Scene file the scene came from, for error messages; None if built in Python.
+    """
+
+    name: str
+    urdf: Path | None = None
+    robot: str | None = None
+    base: str | None = None
+    effects: Effects = field(default_factory=Effects)
+    operating_point: OperatingPointSpec = field(default_factory=OperatingPointSpec)
+    inputs: str | tuple[str, ...] = "all"
+    outputs: Outputs | None = None
+    source: Path | None = None
+
+    # ----------------------------------------------------------------------------------------
+    @classmethod
+    def load(cls, path: str | Path) -> Scene:
+        """Read a scene TOML file.
+
+        Raises:
+            SceneError: missing file, malformed TOML, unknown key or bad value (the message names
+                the file and the field).
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise SceneError(path, None, "scene file not found")
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise SceneError(path, None, f"malformed TOML: {exc}") from None
+        return cls.from_dict(data, source=path)
+
+    @classmethod
+    def from_robot(cls, name: str, **overrides: Any) -> Scene:
+        """Scene for an example-robot-data robot with gravity and the loader's armature.
+
+        Args:
+            name: Robot name as in ``example_robot_data`` (``pinlin robots`` lists them).
+            **overrides: Top-level scene fields in the TOML's dict form (``base``, ``effects``,
+                ``operating_point``, ``inputs``, ``outputs``, ``name``); each replaces the whole
+                default field.
+        """
+        from .robots import robot_names
+
+        if name not in robot_names():
+            raise UnknownRobotError(name, robot_names())
+        data: dict[str, Any] = {
+            "name": name,
+            "robot": name,
+            "effects": {"gravity": list(STANDARD_GRAVITY), "armature": True},
+        }
+        data.update(overrides)
+        return cls.from_dict(data)
+
+    @classmethod
+    def from_urdf(cls, path: str | Path, **overrides: Any) -> Scene:
+        """Scene for a URDF file: fixed base, standard gravity, all joints actuated."""
+        path = Path(path).resolve()
+        data: dict[str, Any] = {
+            "name": path.stem,
+            "urdf": str(path),
+            "effects": {"gravity": list(STANDARD_GRAVITY)},
+        }
+        data.update(overrides)
+        return cls.from_dict(data)
+
+    @classmethod
+    def resolve(cls, target: str | Path) -> Scene:
+        """Scene for a scene file, a URDF file, a bundled scene name or a robot name."""
+        path = Path(target)
+        if path.suffix == ".toml":
+            return cls.load(path)
+        if path.suffix == ".urdf":
+            return cls.from_urdf(path)
+        bundled = bundled_scenes()
+        if str(target) in bundled:
+            return cls.load(bundled[str(target)])
+        from .robots import robot_names
+
+        if str(target) in robot_names():
+            return cls.from_robot(str(target))
+        raise UnknownRobotError(str(target), sorted(bundled) + robot_names())
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str | Path | None = None) -> Scene:
+        """Build a scene from the TOML's dict form; ``source`` is used in error messages and to
+        resolve a relative ``urdf`` path."""
+        return _parse_scene(data, Path(source) if source is not None else None)
+
+    # ----------------------------------------------------------------------------------------
+    @functools.cached_property
+    def system(self):
+        """The :class:`~pinlin.system.System` for this scene, built once and reused."""
+        from .system import System
+
+        return System.build(self)
+
+
+def bundled_scenes() -> dict[str, Path]:
+    """Scenes shipped in ``urdf/`` (installed as ``pinlin.urdf``), by scene file stem."""
+    folder = resources.files("pinlin.urdf")
+    return {
+        Path(str(p)).stem: Path(str(p))
+        for p in folder.iterdir()
+        if str(p).endswith(".toml")
+    }
+
+
+# ------------------------------------------------------------------------------------------------
+# Parsing helpers. Each takes the source (for messages) and the dotted field name.
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def _number(src, fld: str, x: Any, *, minimum: float | None = None, unit: str = "") -> float:
+    if not _is_number(x):
+        raise SceneError(src, fld, f"expected a number{unit}, got {x!r}")
+    value = float(x)
+    if not math.isfinite(value):
+        raise SceneError(src, fld, f"expected a finite number{unit}, got {x!r}")
+    if minimum is not None and value < minimum:
+        raise SceneError(src, fld, f"expected a number >= {minimum:g}{unit}, got {x!r}")
+    return value
+
+
+def _numbers(src, fld: str, x: Any, *, length: int | None = None, unit: str = "",
+             minimum: float | None = None) -> tuple[float, ...]:
+    if not isinstance(x, list):
+        raise SceneError(src, fld, f"expected a list of numbers{unit}, got {x!r}")
+    if length is not None and len(x) != length:
+        raise SceneError(src, fld, f"expected {length} numbers{unit}, got {len(x)}")
+    return tuple(_number(src, f"{fld}[{i}]", v, minimum=minimum, unit=unit)
+                 for i, v in enumerate(x))
+
+
+def _table(src, fld: str, x: Any) -> Mapping[str, Any]:
+    if not isinstance(x, Mapping):
+        raise SceneError(src, fld, f"expected a table, got {x!r}")
+    return x
+
+
+def _check_keys(src, fld: str | None, table: Mapping[str, Any], known: tuple[str, ...],
+                planned: tuple[str, ...] = ()) -> None:
+    for key in table:
+        name = f"{fld}.{key}" if fld else key
+        if key in planned:
+            raise SceneError(src, name, "is not supported by this version of pinlin")
+        if key not in known:
+            raise SceneError(src, name, f"unknown key; expected one of {', '.join(known)}")
+
+
+def _string(src, fld: str, x: Any, choices: tuple[str, ...] | None = None) -> str:
+    if not isinstance(x, str) or not x:
+        raise SceneError(src, fld, f"expected a non-empty string, got {x!r}")
+    if choices is not None and x not in choices:
+        raise SceneError(src, fld, f"expected one of {', '.join(repr(c) for c in choices)}, "
+                                   f"got {x!r}")
+    return x
+
+
+def _names(src, fld: str, x: Any) -> tuple[str, ...]:
+    if not isinstance(x, list) or not all(isinstance(n, str) and n for n in x):
+        raise SceneError(src, fld, f"expected a list of names, got {x!r}")
+    if len(set(x)) != len(x):
+        dup = next(n for n in x if x.count(n) > 1)
+        raise SceneError(src, fld, f"name '{dup}' is listed twice")
+    return tuple(x)
+
+
+def _per_joint(src, fld: str, x: Any, unit: str) -> JointValues | bool:
+    if x is True:
+        return True
+    table = _table(src, fld, x)
+    out: dict[str, float | tuple[float, ...]] = {}
+    for joint, value in table.items():
+        f = f"{fld}.{joint}"
+        out[joint] = (_numbers(src, f, value, unit=unit, minimum=0.0) if isinstance(value, list)
+                      else _number(src, f, value, minimum=0.0, unit=unit))
+    return out
+
+
+def _parse_effects(src, x: Any) -> Effects:
+    table = _table(src, "effects", x)
+    _check_keys(src, "effects", table, _EFFECT_KEYS, _PLANNED_EFFECTS)
+    gravity = None
+    if "gravity" in table:
+        g = table["gravity"]
+        if g is True:
+            gravity = STANDARD_GRAVITY
+        elif g is not False:
+            gravity = _numbers(src, "effects.gravity", g, length=3, unit=" [m/s^2]")
+    armature = damping = None
+    if "armature" in table and table["armature"] is not False:
+        armature = _per_joint(src, "effects.armature", table["armature"], " [kg*m^2 or kg]")
+    if "damping" in table and table["damping"] is not False:
+        damping = _per_joint(src, "effects.damping", table["damping"], " [N*m*s/rad or N*s/m]")
+    springs = None
+    if "springs" in table:
+        springs = {}
+        for joint, spec in _table(src, "effects.springs", table["springs"]).items():
+            f = f"effects.springs.{joint}"
+            spec = _table(src, f, spec)
+            _check_keys(src, f, spec, ("stiffness", "rest"))
+            if "stiffness" not in spec:
+                raise SceneError(src, f"{f}.stiffness", "missing; expected a number >= 0")
+            springs[joint] = Spring(
+                _number(src, f"{f}.stiffness", spec["stiffness"], minimum=0.0,
+                        unit=" [N*m/rad or N/m]"),
+                _number(src, f"{f}.rest", spec.get("rest", 0.0), unit=" [rad or m]"),
+            )
+    return Effects(gravity, armature, damping, springs)
+
+
+def _parse_joint_position(src, fld: str, x: Any) -> Any:
+    if _is_number(x):
+        return _number(src, fld, x, unit=" [rad or m]")
+    if isinstance(x, list):
+        return _numbers(src, fld, x)
+    if isinstance(x, Mapping):
+        _check_keys(src, fld, x, ("position", "rpy", "quaternion"))
+        if "rpy" in x and "quaternion" in x:
+            raise SceneError(src, fld, "give either 'rpy' or 'quaternion', not both")
+        out: dict[str, tuple[float, ...]] = {}
+        if "position" in x:
+            out["position"] = _numbers(src, f"{fld}.position", x["position"], length=3,
+                                       unit=" [m]")
+        if "rpy" in x:
+            out["rpy"] = _numbers(src, f"{fld}.rpy", x["rpy"], length=3, unit=" [rad]")
+        if "quaternion" in x:
+            quat = _numbers(src, f"{fld}.quaternion", x["quaternion"], length=4)
+            norm = math.sqrt(sum(c * c for c in quat))
+            if abs(norm - 1.0) > 1e-6:
+                raise SceneError(src, f"{fld}.quaternion",
+                                 f"expected a unit quaternion [x, y, z, w], got norm {norm:.6g}")
+            out["quaternion"] = quat
+        return out
+    raise SceneError(src, fld, f"expected a number, a list of numbers or a table, got {x!r}")
+
+
+def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
+    table = _table(src, "operating_point", x)
+    _check_keys(src, "operating_point", table, _OP_KEYS)
+    q = {j: _parse_joint_position(src, f"operating_point.q.{j}", v)
+         for j, v in _table(src, "operating_point.q", table.get("q", {})).items()}
+    solve = _string(src, "operating_point.solve", table.get("solve", "inputs"), _SOLVE_MODES)
+    allow = table.get("allow_non_equilibrium", False)
+    if not isinstance(allow, bool):
+        raise SceneError(src, "operating_point.allow_non_equilibrium",
+                         f"expected true or false, got {allow!r}")
+    return OperatingPointSpec(q, solve, allow)
+
+
+def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:
+    data = _table(src, None, data)
+    _check_keys(src, None, data, _TOP_KEYS, ("loops",))
+    has_urdf, has_robot = "urdf" in data, "robot" in data
+    if has_urdf == has_robot:
+        raise SceneError(src, "urdf", "give exactly one of 'urdf' (a file) or 'robot' "
+                                      "(an example-robot-data name)")
+    urdf = robot = None
+    if has_urdf:
+        urdf = Path(_string(src, "urdf", data["urdf"]))
+        if not urdf.is_absolute():
+            urdf = (src.parent if src is not None else Path.cwd()) / urdf
+        urdf = urdf.resolve()
+    else:
+        robot = _string(src, "robot", data["robot"])
+    default_name = src.stem if src is not None else (robot or (urdf.stem if urdf else "scene"))
+    name = _string(src, "name", data.get("name", default_name))
+    base = None
+    if "base" in data:
+        base = _string(src, "base", data["base"], ("fixed", "free"))
+    effects = _parse_effects(src, data.get("effects", {}))
+    op = _parse_operating_point(src, data.get("operating_point", {}))
+    inputs: str | tuple[str, ...] = "all"
+    if "inputs" in data:
+        tin = _table(src, "inputs", data["inputs"])
+        _check_keys(src, "inputs", tin, ("actuated",))
+        act = tin.get("actuated", "all")
+        inputs = "all" if act == "all" else _names(src, "inputs.actuated", act)
+    outputs = None
+    if "outputs" in data:
+        tout = _table(src, "outputs", data["outputs"])
+        _check_keys(src, "outputs", tout, ("frames", "joints"))
+        outputs = Outputs(_names(src, "outputs.frames", tout.get("frames", [])),
+                          _names(src, "outputs.joints", tout.get("joints", [])))
+        if not outputs.frames and not outputs.joints:
+            raise SceneError(src, "outputs", "is empty; name frames or joints, or leave the "
+                                             "table out to output the whole state")
+    return Scene(name=name, urdf=urdf, robot=robot, base=base, effects=effects,
+                 operating_point=op, inputs=inputs, outputs=outputs, source=src)

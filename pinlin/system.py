@@ -1,0 +1,282 @@
+"""The multibody system a scene describes: a Pinocchio model holding exactly the scene's effects.
+
+Pinocchio carries gravity (``model.gravity``) and armature (``model.armature``). Viscous damping
+and joint springs are not part of ``pin.rnea``/``pin.aba`` (URDF ``<dynamics damping>`` is parsed
+but ignored), so pinlin holds them as diagonal matrices and adds their forces and derivatives
+itself. Everything the scene does not list is zeroed: a robot loaded with SRDF armature has none
+unless the scene asks for ``armature``.
+
+Conventions: the state is x = [dq; v] with dq = ``pin.difference(q0, q)`` (tangent space, size
+nv). A floating base is Pinocchio's free-flyer joint ``root_joint``: configuration
+[x, y, z, qx, qy, qz, qw] (position in the world [m], unit quaternion), velocity
+[vx, vy, vz, wx, wy, wz] expressed in the base frame (LOCAL), in [m/s] and [rad/s].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .exceptions import SceneError, UnknownNameError
+from .robots import load_robot
+from .scene import Scene
+from .urdf_io import load_urdf
+
+FREE_FLYER = "JointModelFreeFlyer"
+SPHERICAL = "JointModelSpherical"
+
+
+@dataclass(frozen=True)
+class JointInfo:
+    """Where a joint sits in the configuration and velocity vectors.
+
+    Attributes:
+        name: Joint name.
+        id: Pinocchio joint index.
+        kind: Pinocchio short name, e.g. ``JointModelRZ``.
+        idx_q, nq: Slice of the configuration vector.
+        idx_v, nv: Slice of the velocity (tangent) vector.
+    """
+
+    name: str
+    id: int
+    kind: str
+    idx_q: int
+    nq: int
+    idx_v: int
+    nv: int
+
+    @property
+    def continuous(self) -> bool:
+        """A revolute joint without limits stored as (cos, sin): nq = 2, nv = 1."""
+        return self.nq == 2 and self.nv == 1
+
+    def coordinate_names(self) -> list[str]:
+        """Names of the joint's velocity coordinates: ``name`` or ``name[i]``."""
+        return [self.name] if self.nv == 1 else [f"{self.name}[{i}]" for i in range(self.nv)]
+
+
+@dataclass(frozen=True)
+class OutputMap:
+    """How outputs are read from the state.
+
+    Attributes:
+        state_rows: (output row, state column) pairs for joint positions/velocities.
+        frames: (first output row, frame id) for frame positions, 3 rows each.
+        names: Output names.
+    """
+
+    state_rows: tuple[tuple[int, int], ...]
+    frames: tuple[tuple[int, int], ...]
+    names: tuple[str, ...]
+
+
+class System:
+    """A scene turned into a Pinocchio model plus the effects Pinocchio does not carry.
+
+    Build with :meth:`build`; a scene caches its system as ``scene.system``.
+
+    Attributes:
+        scene: The scene.
+        model: Pinocchio model (gravity and armature as the scene says).
+        data: Pinocchio data owned by this system (not thread-safe).
+        q_ref: Reference configuration (SRDF posture or neutral), before the scene's q overrides.
+        joints: Joint information by name, in model order (the universe excluded).
+        coordinate_names: The nv velocity-coordinate names.
+        damping: Viscous damping per velocity coordinate [N*m*s/rad or N*s/m] (zeros if none).
+        stiffness: Spring stiffness per velocity coordinate [N*m/rad or N/m] (zeros if none).
+        q_rest: Configuration at which every spring is relaxed (others: neutral).
+        actuated: Velocity indices driven by the inputs, in input order.
+        input_names: ``u:<coordinate>`` for each input [N*m or N].
+        outputs: Output map, or None when the output is the full state.
+        base_joint: Name of the free-flyer joint, or None for a fixed base.
+    """
+
+    def __init__(self, scene: Scene, model: pin.Model, q_ref: np.ndarray) -> None:
+        self.scene = scene
+        self.model = model
+        self.q_ref = q_ref
+        self.joints: dict[str, JointInfo] = {}
+        for jid in range(1, model.njoints):
+            j = model.joints[jid]
+            self.joints[model.names[jid]] = JointInfo(
+                model.names[jid], jid, j.shortname(), j.idx_q, j.nq, j.idx_v, j.nv
+            )
+        self.coordinate_names = [n for j in self.joints.values() for n in j.coordinate_names()]
+        self.base_joint = next((n for n, j in self.joints.items() if j.kind == FREE_FLYER and
+                                model.parents[j.id] == 0), None)
+        src = scene.source
+        eff = scene.effects
+        model.gravity.linear = np.array(eff.gravity if eff.gravity is not None else (0, 0, 0.0))
+        self._apply_armature(eff.armature)
+        self.damping = np.zeros(model.nv)
+        if eff.damping is True:
+            self.damping = np.array(model.damping, dtype=float).copy()
+        elif eff.damping:
+            self.damping = self._joint_vector(eff.damping, "effects.damping")
+        self.stiffness = np.zeros(model.nv)
+        self.q_rest = pin.neutral(model)
+        for name, spring in (eff.springs or {}).items():
+            fld = f"effects.springs.{name}"
+            j = self.joint(name, fld)
+            if j.nv != 1:
+                raise SceneError(src, fld, f"springs act on 1-DoF joints; '{name}' has {j.nv}")
+            self.stiffness[j.idx_v] = spring.stiffness
+            self.q_rest[j.idx_q:j.idx_q + j.nq] = _one_dof_config(j, spring.rest)
+        self.has_damping = bool(np.any(self.damping))
+        self.has_springs = bool(np.any(self.stiffness))
+        self.actuated = self._inputs(scene.inputs)
+        self.input_names = [f"u:{self.coordinate_names[i]}" for i in self.actuated]
+        self.outputs = self._outputs()
+        self.data = model.createData()
+
+    # ----------------------------------------------------------------------------------------
+    @classmethod
+    def build(cls, scene: Scene) -> System:
+        """Load the scene's robot and apply its effects.
+
+        Raises:
+            UrdfError, UnknownRobotError, RobotLoadError: the robot cannot be loaded.
+            SceneError: a field names a joint or frame the robot lacks, or a bad size.
+        """
+        if scene.robot is not None:
+            model, q_ref = _robot_model(scene)
+        else:
+            assert scene.urdf is not None
+            model = load_urdf(scene.urdf, free_flyer=scene.base == "free")
+            q_ref = pin.neutral(model)
+            model.armature = np.zeros(model.nv)
+        return cls(scene, model, q_ref)
+
+    # ----------------------------------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @property
+    def state_names(self) -> list[str]:
+        """``q:<coordinate>`` then ``v:<coordinate>``."""
+        return [f"q:{n}" for n in self.coordinate_names] + [f"v:{n}" for n in self.coordinate_names]
+
+    def joint(self, name: str, field: str | None = None) -> JointInfo:
+        """Joint ``name`` or an :class:`UnknownNameError` naming ``field``."""
+        try:
+            return self.joints[name]
+        except KeyError:
+            raise UnknownNameError(self.scene.source, field, name, "joint", list(self.joints)) \
+                from None
+
+    def frame_id(self, name: str, field: str | None = None) -> int:
+        """Frame index of ``name`` or an :class:`UnknownNameError` naming ``field``."""
+        if not self.model.existFrame(name):
+            known = [f.name for f in self.model.frames][1:]
+            raise UnknownNameError(self.scene.source, field, name, "frame", known)
+        return self.model.getFrameId(name)
+
+    def spring_torque(self, q: np.ndarray) -> np.ndarray:
+        """Generalized spring force at configuration ``q`` [N*m or N]."""
+        if not self.has_springs:
+            return np.zeros(self.nv)
+        return -self.stiffness * pin.difference(self.model, self.q_rest, q)
+
+    # ----------------------------------------------------------------------------------------
+    def _joint_vector(self, values: Mapping, fld: str) -> np.ndarray:
+        out = np.zeros(self.model.nv)
+        for name, value in values.items():
+            j = self.joint(name, f"{fld}.{name}")
+            if isinstance(value, tuple):
+                if len(value) != j.nv:
+                    raise SceneError(self.scene.source, f"{fld}.{name}",
+                                     f"joint '{name}' has {j.nv} velocity coordinates; expected a "
+                                     f"number or {j.nv} numbers, got {len(value)}")
+                out[j.idx_v:j.idx_v + j.nv] = value
+            else:
+                out[j.idx_v:j.idx_v + j.nv] = value
+        return out
+
+    def _apply_armature(self, armature) -> None:
+        model = self.model
+        if armature is True:
+            if not np.any(model.armature):
+                raise SceneError(self.scene.source, "effects.armature",
+                                 "true takes the rotor inertias from the robot's SRDF, and this "
+                                 "robot has none; give a table {joint = value} [kg*m^2]")
+        elif armature:
+            model.armature = self._joint_vector(armature, "effects.armature")
+        else:
+            model.armature = np.zeros(model.nv)
+
+    def _inputs(self, inputs) -> np.ndarray:
+        if inputs == "all":
+            names = [n for n in self.joints if n != self.base_joint]
+        else:
+            names = list(inputs)
+        idx: list[int] = []
+        for name in names:
+            j = self.joint(name, "inputs.actuated")
+            idx.extend(range(j.idx_v, j.idx_v + j.nv))
+        return np.array(idx, dtype=int)
+
+    def _outputs(self) -> OutputMap | None:
+        spec = self.scene.outputs
+        if spec is None:
+            return None
+        rows: list[tuple[int, int]] = []
+        names: list[str] = []
+        for entry in spec.joints:
+            prefix, _, jname = entry.rpartition(":")
+            if prefix not in ("", "q", "v"):
+                raise SceneError(self.scene.source, "outputs.joints",
+                                 f"'{entry}': expected 'name', 'q:name' or 'v:name'")
+            j = self.joint(jname, "outputs.joints")
+            parts = ("q", "v") if prefix == "" else (prefix,)
+            for part in parts:
+                offset = 0 if part == "q" else self.nv
+                for k, cname in enumerate(j.coordinate_names()):
+                    rows.append((len(names), offset + j.idx_v + k))
+                    names.append(f"{part}:{cname}")
+        frames: list[tuple[int, int]] = []
+        for fname in spec.frames:
+            fid = self.frame_id(fname, "outputs.frames")
+            frames.append((len(names), fid))
+            names.extend(f"p:{fname}[{ax}]" for ax in "xyz")
+        return OutputMap(tuple(rows), tuple(frames), tuple(names))
+
+
+def _one_dof_config(j: JointInfo, value: float) -> np.ndarray:
+    """Configuration entries of a 1-DoF joint at position ``value`` [rad or m]."""
+    if j.continuous:
+        return np.array([np.cos(value), np.sin(value)])
+    return np.array([value])
+
+
+def _robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:
+    """example-robot-data model, with the base the scene asks for."""
+    rm = load_robot(scene.robot)
+    model, q_ref = rm.model, rm.q_ref
+    if scene.base == "fixed" and rm.free_flyer:
+        # Lock the free flyer at the reference pose: the rest of the model is untouched.
+        model = pin.buildReducedModel(model, [1], q_ref)
+        q_ref = q_ref[7:].copy()
+    elif scene.base == "free" and not rm.free_flyer:
+        from example_robot_data.robots_loader import ROBOTS, readParamsFromSrdf
+
+        from .robots import _uses_generic_recipe
+
+        loader = ROBOTS[scene.robot]
+        if not _uses_generic_recipe(loader):
+            raise SceneError(scene.source, "base", f"robot '{scene.robot}' is built by a custom "
+                                                   "loader; it cannot be given a floating base")
+        model = load_urdf(Path(rm.urdf_path), free_flyer=True)
+        q_ref = (readParamsFromSrdf(model, rm.srdf_path, False, loader.has_rotor_parameters,
+                                    loader.ref_posture)
+                 if rm.srdf_path is not None else pin.neutral(model))
+    return model, np.asarray(q_ref, float)
