@@ -117,7 +117,8 @@ class EquilibriumError(PinlinError):
     """The requested operating point is not an equilibrium and cannot be made one.
 
     Attributes:
-        residual: Generalized force [N or N·m] per velocity coordinate that the inputs cannot supply.
+        residual: Generalized force [N or N*m] per velocity coordinate that the inputs cannot
+            supply.
         names: Velocity-coordinate names matching ``residual``.
     """
 

@@ -93,8 +93,8 @@ def _check_inertials(path: Path, root: ET.Element) -> None:
         # Principal moments of a real body satisfy the triangle inequality.
         if eig[2] > eig[0] + eig[1] + 1e-9 * scale:
             raise UrdfError(path, f"link '{name}': principal moments "
-                                  f"{np.array2string(eig, precision=3)} kg*m^2 violate the triangle "
-                                  "inequality I3 <= I1 + I2 (no physical body has them)")
+                                  f"{np.array2string(eig, precision=3)} kg*m^2 violate the "
+                                  "triangle inequality I3 <= I1 + I2 (no physical body has them)")
 
 
 def load_urdf(path: str | Path, *, free_flyer: bool) -> pin.Model:
