@@ -169,7 +169,7 @@ class Scene:
 
     @classmethod
     def from_robot(cls, name: str, **overrides: Any) -> Scene:
-        """Scene for an example-robot-data robot with gravity and the loader's armature.
+        """Scene for an example-robot-data robot: gravity, and armature where its loader sets it.
 
         Args:
             name: Robot name as in ``example_robot_data`` (``pinlin robots`` lists them).
@@ -177,15 +177,14 @@ class Scene:
                 ``operating_point``, ``inputs``, ``outputs``, ``name``); each replaces the whole
                 default field.
         """
-        from .robots import robot_names
+        import numpy as np
 
-        if name not in robot_names():
-            raise UnknownRobotError(name, robot_names())
-        data: dict[str, Any] = {
-            "name": name,
-            "robot": name,
-            "effects": {"gravity": list(STANDARD_GRAVITY), "armature": True},
-        }
+        from .robots import load_robot
+
+        effects: dict[str, Any] = {"gravity": list(STANDARD_GRAVITY)}
+        if np.any(load_robot(name).model.armature):
+            effects["armature"] = True
+        data: dict[str, Any] = {"name": name, "robot": name, "effects": effects}
         data.update(overrides)
         return cls.from_dict(data)
 

@@ -63,7 +63,7 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
         pin.updateFramePlacements(model, data)
         for row, fid in spec.frames:
             J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-            C[row:row + 3, :nv] = J[:3]
+            C[row:row + 3, :nv] = np.reshape(J, (6, nv))[:3]   # eigenpy flattens 6x1 to (6,)
             y0[row:row + 3] = data.oMf[fid].translation
     return C, np.zeros((p, nu)), list(spec.names), y0
 

@@ -1,0 +1,164 @@
+"""The command line: the main job works, and bad input gives one line on stderr and exit 2."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import URDF_DIR
+
+import pinlin
+from pinlin.cli import main
+
+PENDULUM = (URDF_DIR / "pendulum.urdf").read_text()
+
+
+def run(capfd, *argv):
+    code = main(list(argv))
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
+def test_linearize_bundled_scene_prints_operating_point_and_modes(capfd, tmp_path):
+    out_file = tmp_path / "dp.npz"
+    code, out, err = run(capfd, "linearize", "double_pendulum", "--out", str(out_file))
+    assert code == 0 and err == ""
+    assert "residual max |r|" in out and "equilibrium" in out
+    assert "symmetric eigensolver" in out and "undamped" in out
+    model = pinlin.LinearModel.load(out_file)
+    assert model.state_names == ("q:shoulder", "q:elbow", "v:shoulder", "v:elbow")
+
+
+def test_linearize_robot_name_with_matrices(capfd):
+    code, out, _ = run(capfd, "linearize", "ur5", "--matrices", "--derivatives", "fd5")
+    assert code == 0 and "A =" in out and "fd5 derivatives (step 0.0005)" in out
+
+
+def test_robots_lists_the_loadable_ones(capfd):
+    code, out, _ = run(capfd, "robots")
+    assert code == 0 and "talos" in out and "cassie" in out.split("do not load here:")[1]
+
+
+def test_console_script_runs():
+    res = subprocess.run([sys.executable, "-m", "pinlin.cli", "linearize", "pendulum"],
+                         capture_output=True, text=True, check=False)
+    assert res.returncode == 0 and f"{np.sqrt(9.81):.6g}j" in res.stdout   # wn = sqrt(g / L)
+
+
+GOOD_URDF = {"robot__urdf": PENDULUM}
+
+BAD_SCENES = {
+    "missing_urdf": ('urdf = "missing.urdf"\n', {}, "missing.urdf: file not found"),
+    "malformed_toml": ('urdf = "robot.urdf"\n[effects\n', GOOD_URDF, "malformed TOML"),
+    "unknown_joint_in_q": ('urdf = "robot.urdf"\n[operating_point]\nq = { elbow = 1.0 }\n',
+                           GOOD_URDF, "'elbow' is not a joint"),
+    "unknown_effect": ('urdf = "robot.urdf"\n[effects]\nfriction = 1.0\n', GOOD_URDF,
+                       "field 'effects.friction': unknown key"),
+    "nan_gravity": ('urdf = "robot.urdf"\n[effects]\ngravity = [nan, 0.0, -9.81]\n', GOOD_URDF,
+                    "expected a finite number"),
+    "wrong_length": ('urdf = "robot.urdf"\n[effects]\ngravity = [0.0, -9.81]\n', GOOD_URDF,
+                     "expected 3 numbers"),
+    "negative_damping": ('urdf = "robot.urdf"\n[effects]\ndamping = { hinge = -1.0 }\n',
+                         GOOD_URDF, "expected a number >= 0"),
+    "unknown_frame": ('urdf = "robot.urdf"\n[outputs]\nframes = ["hand"]\n', GOOD_URDF,
+                      "'hand' is not a frame"),
+    "unknown_input": ('urdf = "robot.urdf"\n[inputs]\nactuated = ["knee"]\n', GOOD_URDF,
+                      "field 'inputs.actuated': 'knee' is not a joint"),
+    "both_sources": ('urdf = "robot.urdf"\nrobot = "ur5"\n', GOOD_URDF, "exactly one of"),
+    "bad_base": ('urdf = "robot.urdf"\nbase = "floating"\n', GOOD_URDF,
+                 "expected one of 'fixed', 'free'"),
+    "unknown_top_key": ('urdf = "robot.urdf"\ngravity = true\n', GOOD_URDF,
+                        "field 'gravity': unknown key"),
+    "malformed_urdf": ('urdf = "robot.urdf"\n', {"robot__urdf": "<robot><link></robot>"},
+                       "malformed XML"),
+    "not_a_urdf": ('urdf = "robot.urdf"\n', {"robot__urdf": "<sdf/>"}, "must be <robot>"),
+    "negative_mass": ('urdf = "robot.urdf"\n',
+                      {"robot__urdf": PENDULUM.replace('value="1.0"', 'value="-2.0"')},
+                      "mass must be a finite number >= 0"),
+    "bad_inertia": ('urdf = "robot.urdf"\n',
+                    {"robot__urdf": PENDULUM.replace('ixx="0"', 'ixx="-1"')},
+                    "not positive semi-definite"),
+    "spring_without_stiffness": ('urdf = "robot.urdf"\n[effects]\nsprings = { hinge = '
+                                 '{ rest = 0.1 } }\n', GOOD_URDF, "stiffness': missing"),
+    "q_wrong_type": ('urdf = "robot.urdf"\n[operating_point]\nq = { hinge = "up" }\n', GOOD_URDF,
+                     "expected a number, a list of numbers or a table"),
+    "q_wrong_count": ('urdf = "robot.urdf"\n[operating_point]\nq = { hinge = [0.1, 0.2] }\n',
+                      GOOD_URDF, "has 1 configuration values, got 2"),
+    "armature_true_on_urdf": ('urdf = "robot.urdf"\n[effects]\narmature = true\n', GOOD_URDF,
+                              "this robot has none"),
+    "unsupported_loops": ('urdf = "robot.urdf"\n[[loops]]\nname = "x"\n', GOOD_URDF,
+                          "field 'loops': is not supported"),
+    "non_unit_quaternion": ('robot = "solo12"\n[operating_point]\nq = { root_joint = { '
+                            'quaternion = [0.0, 0.0, 0.0, 2.0] } }\n', {}, "unit quaternion"),
+    "not_equilibrium": ('robot = "solo12"\n[effects]\ngravity = true\n', {},
+                        "is not an equilibrium"),
+    "massless_joint": ('urdf = "robot.urdf"\n',
+                       {"robot__urdf": PENDULUM.replace('value="1.0"', 'value="0.0"')},
+                       "carries no inertia"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_SCENES))
+def test_bad_scene_gives_one_line_and_exit_2(case, write_scene, capfd, tmp_path):
+    text, files, fragment = BAD_SCENES[case]
+    path = write_scene(text, **files)
+    out_file = tmp_path / "never.npz"
+    code, out, err = run(capfd, "linearize", str(path), "--out", str(out_file))
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("pinlin: error: ")
+    assert fragment in err, err
+    assert "Traceback" not in err and not out_file.exists()
+
+
+BAD_ARGS = {
+    "unknown_robot": (["linearize", "robocop"], "'robocop' is not a scene file"),
+    "missing_scene_file": (["linearize", "nowhere/scene.toml"], "scene file not found"),
+    "bad_out_suffix": (["linearize", "pendulum", "--out", "m.txt"], "unknown model format"),
+    "out_folder_missing": (["linearize", "pendulum", "--out", "/nonexistent/dir/m.npz"],
+                           "does not exist"),
+    "bad_derivatives": (["linearize", "pendulum", "--derivatives", "fd7"], "invalid choice"),
+    "bad_step": (["linearize", "pendulum", "--derivatives", "fd3", "--step", "-1"],
+                 "step must be a positive number"),
+    "unknown_option": (["linearize", "pendulum", "--fast"], "unrecognized arguments"),
+    "no_command": ([], "required"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_ARGS))
+def test_bad_arguments_give_one_line_and_exit_2(case, capfd):
+    argv, fragment = BAD_ARGS[case]
+    code, _, err = run(capfd, *argv)
+    assert code == 2 and err.count("\n") == 1 and fragment in err, err
+    assert "Traceback" not in err
+
+
+def test_unwritable_out_writes_nothing(capfd, tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        code, _, err = run(capfd, "linearize", "pendulum", "--out", str(locked / "m.npz"))
+    finally:
+        locked.chmod(0o700)
+    import os
+
+    if os.geteuid() == 0:   # root ignores permission bits: the file can be written
+        assert code == 0
+    else:
+        assert code == 2 and "permission denied" in err and not (locked / "m.npz").exists()
+
+
+def test_console_script_bad_input_has_no_traceback(tmp_path):
+    res = subprocess.run([sys.executable, "-m", "pinlin.cli", "linearize", "robocop"],
+                         capture_output=True, text=True, check=False)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "Traceback" not in res.stderr
+
+
+def test_nan_configuration_from_python_is_refused():
+    scene = pinlin.Scene.load(URDF_DIR / "pendulum.toml")
+    with pytest.raises(pinlin.ShapeError, match="NaN"):
+        pinlin.linearize(scene, q=np.array([np.nan]))
+    with pytest.raises(pinlin.ShapeError, match="nq = 1"):
+        pinlin.linearize(scene, q=np.zeros(3))

@@ -1,0 +1,102 @@
+"""Scenes and example-robot-data models: the fast loading route equals the real loaders."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from example_robot_data import load as erd_load
+
+import pinlin
+from pinlin.robots import load_robot
+
+
+@pytest.mark.parametrize("name", ["ur5", "talos", "panda", "solo12", "talos_legs"])
+def test_fast_loading_matches_example_robot_data(name):
+    with contextlib.redirect_stdout(io.StringIO()):
+        ref = erd_load(name)
+    ours = load_robot(name)
+    assert ours.model.nq == ref.model.nq and ours.model.nv == ref.model.nv
+    assert list(ours.model.names) == list(ref.model.names)
+    np.testing.assert_array_equal(ours.model.armature, ref.model.armature)
+    np.testing.assert_allclose(ours.q_ref, ref.q0, atol=1e-15)
+    q = pin.randomConfiguration(ref.model, -np.ones(ref.model.nq), np.ones(ref.model.nq))
+    M_ours = pin.crba(ours.model, ours.model.createData(), q)
+    M_ref = pin.crba(ref.model, ref.model.createData(), q)
+    np.testing.assert_allclose(M_ours, M_ref, rtol=1e-14, atol=1e-14)
+
+
+def test_from_robot_uses_reference_posture_and_loader_armature():
+    scene = pinlin.Scene.from_robot("talos")
+    system = scene.system
+    assert scene.effects.armature is True and system.base_joint == "root_joint"
+    with contextlib.redirect_stdout(io.StringIO()):
+        ref = erd_load("talos")
+    np.testing.assert_array_equal(system.model.armature, ref.model.armature)
+    assert np.all(system.model.armature[:6] == 0.0) and system.model.armature.max() == 0.1
+    np.testing.assert_allclose(pinlin.operating_point(system, allow_non_equilibrium=True).q,
+                               ref.q0)
+
+
+def test_armature_absent_unless_called_for():
+    scene = pinlin.Scene.from_robot("talos_arm", effects={"gravity": True})
+    assert not np.any(scene.system.model.armature)
+
+
+def test_fixed_base_override_locks_the_free_flyer():
+    scene = pinlin.Scene.from_robot("talos", base="fixed")
+    assert scene.system.base_joint is None and scene.system.nv == 32
+    model = pinlin.linearize(scene)           # now every DoF is actuated: an equilibrium
+    assert model.operating_point.equilibrium and model.A.shape == (64, 64)
+
+
+def test_scene_file_round_trip(write_scene):
+    path = write_scene("""
+name = "arm"
+robot = "ur5"
+[effects]
+gravity = true
+damping = { elbow_joint = 0.5 }
+springs = { wrist_1_joint = { stiffness = 10.0, rest = 0.2 } }
+[operating_point]
+q = { elbow_joint = 1.0 }
+[inputs]
+actuated = ["shoulder_lift_joint", "elbow_joint"]
+[outputs]
+joints = ["elbow_joint", "v:wrist_1_joint"]
+frames = ["tool0"]
+""")
+    scene = pinlin.Scene.load(path)
+    assert scene.effects.in_play() == ["gravity", "damping", "springs"]
+    system = scene.system
+    assert system.input_names == ["u:shoulder_lift_joint", "u:elbow_joint"]
+    assert system.outputs.names[:3] == ("q:elbow_joint", "v:elbow_joint", "v:wrist_1_joint")
+    # Four unactuated joints: the posture is held only if gravity leaves them unloaded.
+    with pytest.raises(pinlin.EquilibriumError, match="cannot supply"):
+        pinlin.linearize(scene)
+    model = pinlin.linearize(scene, allow_non_equilibrium=True)
+    assert model.B.shape == (12, 2) and model.C.shape == (6, 12)
+    assert "not an equilibrium" in model.operating_point.notes[0]
+
+
+def test_floating_base_pose_from_table(write_scene):
+    path = write_scene("""
+robot = "solo12"
+[effects]
+[operating_point]
+q = { root_joint = { position = [0.0, 0.0, 0.4], rpy = [0.1, 0.2, 0.3] } }
+""")
+    system = pinlin.Scene.load(path).system
+    q0 = pinlin.operating_point(system).q
+    np.testing.assert_allclose(q0[:3], [0, 0, 0.4])
+    np.testing.assert_allclose(pin.Quaternion(q0[3:7]).matrix(),
+                               pin.rpy.rpyToMatrix(0.1, 0.2, 0.3), atol=1e-15)
+
+
+def test_bundled_scenes_all_linearize():
+    for name, path in pinlin.scene.bundled_scenes().items():
+        model = pinlin.linearize(path)
+        assert model.name == name and np.all(np.isfinite(model.A))
