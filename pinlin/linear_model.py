@@ -16,6 +16,7 @@ and output has a name. Models are saved and loaded as ``.npz``, MATLAB ``.mat`` 
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -32,7 +33,21 @@ _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 _FORMATS = (".npz", ".mat", ".json")
 
 
+@functools.lru_cache(maxsize=512)
+def _unique(names: tuple[str, ...]) -> bool:
+    return len(set(names)) == len(names)
+
+
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    """Mark ``arr`` read-only and return it (for arrays handed to a LinearModel)."""
+    arr.flags.writeable = False
+    return arr
+
+
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
+    if (isinstance(value, np.ndarray) and value.dtype == np.float64 and value.shape == shape
+            and not value.flags.writeable):
+        return value  # already immutable: sharing it is safe
     arr = np.array(value, dtype=float)  # a copy: the model owns its arrays
     if arr.ndim == 1 and 0 in shape:
         arr = arr.reshape(shape)
@@ -76,12 +91,15 @@ class LinearModel:
     info: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        names = {k: tuple(str(s) for s in getattr(self, k))
-                 for k in ("state_names", "input_names", "output_names")}
-        for k, v in names.items():
-            object.__setattr__(self, k, v)
-            if len(set(v)) != len(v):
+        names = {}
+        for k in ("state_names", "input_names", "output_names"):
+            v = getattr(self, k)
+            if not (isinstance(v, tuple) and all(type(s) is str for s in v)):
+                v = tuple(str(s) for s in v)
+                object.__setattr__(self, k, v)
+            if not _unique(v):
                 raise ShapeError(f"{k} has duplicates")
+            names[k] = v
         n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
         shapes = {"A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m), "E": (n, m), "F": (p, m)}
         for key, shape in shapes.items():

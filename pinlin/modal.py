@@ -51,7 +51,6 @@ class ModalAnalysis:
 
     Attributes:
         eigenvalues: 2n eigenvalues, by increasing |lam|, conjugate pairs adjacent (+Im first).
-        right_vectors: Right eigenvectors of A as columns (Jordan chains for rigid modes).
         shapes: Mode shapes in the coordinates (position part of the right vectors), each scaled
             so that its largest entry is exactly 1.
         coordinate_names: Names of the shape entries.
@@ -64,7 +63,6 @@ class ModalAnalysis:
     """
 
     eigenvalues: np.ndarray
-    right_vectors: np.ndarray
     shapes: np.ndarray
     coordinate_names: tuple[str, ...]
     wn: np.ndarray
@@ -73,8 +71,9 @@ class ModalAnalysis:
     rigid_tol: float
     method: str
     model: LinearModel
+    _right: np.ndarray | None = None
     _left: np.ndarray | None = None
-    _mass_shapes: np.ndarray | None = None
+    _phi: np.ndarray | None = None
 
     # ----------------------------------------------------------------------------------------
     @property
@@ -93,11 +92,19 @@ class ModalAnalysis:
         return not bool(np.any(self.unstable))
 
     @functools.cached_property
+    def right_vectors(self) -> np.ndarray:
+        """Right eigenvectors of A as columns (Jordan chains for rigid modes of the symmetric
+        path); built on first access."""
+        if self._right is not None:
+            return self._right
+        return _symmetric_right(self.eigenvalues, self._phi, self.rigid)
+
+    @functools.cached_property
     def left_vectors(self) -> np.ndarray:
-        """Left eigenvectors as columns, scaled so that l_i^H r_i = 1."""
+        """Left eigenvectors as columns, scaled so that l_i^H r_i = 1; built on first access."""
         if self._left is not None:
             return self._left
-        return _symmetric_left(self.eigenvalues, self._mass_shapes, self.rigid)
+        return _symmetric_left(self.eigenvalues, self.model.M @ self._phi, self.rigid)
 
     @functools.cached_property
     def condition(self) -> np.ndarray:
@@ -232,7 +239,7 @@ def _frequencies(lam: np.ndarray, rigid: np.ndarray) -> tuple[np.ndarray, np.nda
 def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     n = model.M.shape[0]
     K = 0.5 * (model.K + model.K.T)
-    w2, phi = sla.eigh(K, model.M)  # phi^T M phi = I
+    w2, phi = sla.eigh(K, model.M, driver="gvd")  # phi^T M phi = I (divide and conquer)
     tol = _rigid_tol(np.sqrt(np.abs(w2)), rigid_tol)
     order = np.argsort(np.abs(w2), kind="stable")
     w2, phi = w2[order], phi[:, order]
@@ -241,19 +248,25 @@ def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     root = np.where(w2 >= 0, 1j * root, root)           # +i w (stable) or +sigma (unstable)
     root = np.where(rigid_mode, 0.0, root)
     lam = np.empty(2 * n, dtype=complex)
-    lam[0::2], lam[1::2] = root, -root
-    # Unstable pairs: list -sigma after +sigma is fine; keep +Im first for oscillatory pairs.
-    R = np.zeros((2 * n, 2 * n), dtype=complex)
-    R[:n, 0::2] = phi
-    R[:n, 1::2] = phi
-    R[n:, 0::2] = np.where(rigid_mode, 0.0, root) * phi
-    R[n:, 1::2] = np.where(rigid_mode, 1.0, -root) * phi
-    R[:n, 1::2] = np.where(rigid_mode, 0.0, 1.0) * phi   # Jordan chain [phi; 0], [0; phi]
+    lam[0::2], lam[1::2] = root, -root       # +i w first (oscillatory), +sigma first (unstable)
     rigid = np.repeat(rigid_mode, 2)
     wn, zeta = _frequencies(lam, rigid)
     shapes = _normalize_shapes(np.repeat(phi, 2, axis=1))
-    return ModalAnalysis(lam, R, shapes, _coordinate_names(model, n), wn, zeta, rigid, tol,
-                         "symmetric", model, None, model.M @ phi)
+    return ModalAnalysis(lam, shapes, _coordinate_names(model, n), wn, zeta, rigid, tol,
+                         "symmetric", model, _phi=phi)
+
+
+def _symmetric_right(lam: np.ndarray, phi: np.ndarray, rigid: np.ndarray) -> np.ndarray:
+    """r = [phi; lam phi]; a rigid pair is the Jordan chain [phi; 0], [0; phi]."""
+    n = phi.shape[0]
+    rigid_mode = rigid[0::2]
+    root = lam[0::2]
+    R = np.zeros((2 * n, 2 * n), dtype=complex)
+    R[:n, 0::2] = phi
+    R[n:, 0::2] = root * phi
+    R[:n, 1::2] = np.where(rigid_mode, 0.0, 1.0) * phi
+    R[n:, 1::2] = np.where(rigid_mode, 1.0, -root) * phi
+    return R
 
 
 def _symmetric_left(lam: np.ndarray, mphi: np.ndarray, rigid: np.ndarray) -> np.ndarray:
@@ -288,5 +301,5 @@ def _general(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     wn, zeta = _frequencies(lam, rigid)
     n = model.n_states // 2 if model.has_second_order else model.n_states
     shapes = _normalize_shapes(vr[:n])
-    return ModalAnalysis(lam, vr, shapes, _coordinate_names(model, n), wn, zeta, rigid, tol,
-                         "general", model, vl, None)
+    return ModalAnalysis(lam, shapes, _coordinate_names(model, n), wn, zeta, rigid, tol,
+                         "general", model, _right=vr, _left=vl)

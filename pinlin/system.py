@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import SceneError, UnknownNameError
+from .exceptions import ModelError, SceneError, UnknownNameError
 from .robots import load_robot
 from .scene import Scene
 from .urdf_io import load_urdf
@@ -92,6 +92,8 @@ class System:
         q_rest: Configuration at which every spring is relaxed (others: neutral).
         actuated: Velocity indices driven by the inputs, in input order.
         input_names: ``u:<coordinate>`` for each input [N*m or N].
+        input_matrix: S (nv x nu, read-only): generalized force = S u.
+        state_names: ``q:<coordinate>`` then ``v:<coordinate>``.
         outputs: Output map, or None when the output is the full state.
         base_joint: Name of the free-flyer joint, or None for a fixed base.
     """
@@ -130,9 +132,17 @@ class System:
         self.has_damping = bool(np.any(self.damping))
         self.has_springs = bool(np.any(self.stiffness))
         self.actuated = self._inputs(scene.inputs)
-        self.input_names = [f"u:{self.coordinate_names[i]}" for i in self.actuated]
+        self.input_names = tuple(f"u:{self.coordinate_names[i]}" for i in self.actuated)
+        self.state_names = tuple([f"q:{n}" for n in self.coordinate_names]
+                                 + [f"v:{n}" for n in self.coordinate_names])
+        nu = len(self.actuated)
+        selection = np.zeros((model.nv, nu))
+        selection[self.actuated, np.arange(nu)] = 1.0
+        self.input_matrix = _read_only(selection)
         self.outputs = self._outputs()
         self.data = model.createData()
+        self._minv_key: bytes | None = None
+        self._minv = np.zeros((0, 0))
 
     # ----------------------------------------------------------------------------------------
     @classmethod
@@ -161,11 +171,6 @@ class System:
     def nv(self) -> int:
         return self.model.nv
 
-    @property
-    def state_names(self) -> list[str]:
-        """``q:<coordinate>`` then ``v:<coordinate>``."""
-        return [f"q:{n}" for n in self.coordinate_names] + [f"v:{n}" for n in self.coordinate_names]
-
     def joint(self, name: str, field: str | None = None) -> JointInfo:
         """Joint ``name`` or an :class:`UnknownNameError` naming ``field``."""
         try:
@@ -180,6 +185,31 @@ class System:
             known = [f.name for f in self.model.frames][1:]
             raise UnknownNameError(self.scene.source, field, name, "frame", known)
         return self.model.getFrameId(name)
+
+    def mass_inverse(self, q: np.ndarray) -> np.ndarray:
+        """M(q)^-1 from ``pin.computeMinverse`` (read-only), remembered for the last q: the
+        operating point and the linear model at the same q share one computation.
+
+        Raises:
+            ModelError: M is singular (a coordinate moves no inertia).
+        """
+        key = q.tobytes()
+        if self._minv_key != key:
+            Minv = np.array(pin.computeMinverse(self.model, self.data, q))
+            diag = np.diag(Minv)
+            if not (np.isfinite(Minv.sum()) and diag.min(initial=1.0) > 0.0):
+                self._raise_singular(q)
+            self._minv, self._minv_key = _read_only(Minv), key
+        return self._minv
+
+    def _raise_singular(self, q: np.ndarray) -> None:
+        M = pin.crba(self.model, self.data, q)
+        diag = np.diag(M)
+        bad = int(np.argmin(np.where(np.isfinite(diag), diag, -np.inf)))
+        raise ModelError(f"scene '{self.scene.name}': the mass matrix is singular at q0: "
+                         f"coordinate '{self.coordinate_names[bad]}' carries no inertia "
+                         f"(M[{bad},{bad}] = {diag[bad]:.3g}); give the bodies it moves mass "
+                         "or armature")
 
     def spring_torque(self, q: np.ndarray) -> np.ndarray:
         """Generalized spring force at configuration ``q`` [N*m or N]."""
@@ -249,6 +279,11 @@ class System:
             frames.append((len(names), fid))
             names.extend(f"p:{fname}[{ax}]" for ax in "xyz")
         return OutputMap(tuple(rows), tuple(frames), tuple(names))
+
+
+def _read_only(arr: np.ndarray) -> np.ndarray:
+    arr.flags.writeable = False
+    return arr
 
 
 def _one_dof_config(j: JointInfo, value: float) -> np.ndarray:

@@ -72,7 +72,7 @@ frames = ["tool0"]
     scene = pinlin.Scene.load(path)
     assert scene.effects.in_play() == ["gravity", "damping", "springs"]
     system = scene.system
-    assert system.input_names == ["u:shoulder_lift_joint", "u:elbow_joint"]
+    assert system.input_names == ("u:shoulder_lift_joint", "u:elbow_joint")
     assert system.outputs.names[:3] == ("q:elbow_joint", "v:elbow_joint", "v:wrist_1_joint")
     # Four unactuated joints: the posture is held only if gravity leaves them unloaded.
     with pytest.raises(pinlin.EquilibriumError, match="cannot supply"):

@@ -4,42 +4,26 @@ With H_z = K, H_z' = C and H_z'' = M (eqs. 9.8-9.11 with R = I), eq. 9.57 in Row
 
     x = [dq; v],   A = [[0, I], [-M^-1 K, -M^-1 C]],   B = [[0], [M^-1 S]]
 
-M^-1 comes from ``pin.computeMinverse`` (one O(n^2) recursion, no factorization), so one matrix
+M^-1 comes from ``pin.computeMinverse`` (one recursion, no factorization), so one matrix
 product gives the whole lower block row. At v = 0 the upper block row is exactly [0 I] also on
 Lie groups (d/dt of ``difference(q0, q)`` equals v at q = q0).
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pinocchio as pin
 
 from ..derivatives import second_order_terms
-from ..exceptions import ModelError
-from ..linear_model import LinearModel
+from ..linear_model import LinearModel, _frozen
 from ..operating_point import OperatingPoint
 from ..system import System
 
 
-def mass_inverse(system: System, q: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """M^-1 at q, checked: a joint carrying no inertia makes M singular.
-
-    Raises:
-        ModelError: M is not positive definite (names the first coordinate without inertia).
-    """
-    Minv = np.array(pin.computeMinverse(system.model, system.data, q))
-    diag = np.diag(M)
-    if not (np.all(np.isfinite(Minv)) and np.all(diag > 0.0)):
-        bad = int(np.argmin(np.where(np.isfinite(diag), diag, -np.inf)))
-        raise ModelError(f"scene '{system.scene.name}': the mass matrix is singular at q0: "
-                         f"coordinate '{system.coordinate_names[bad]}' carries no inertia "
-                         f"(M[{bad},{bad}] = {diag[bad]:.3g}); give the bodies it moves mass "
-                         "or armature")
-    return Minv
-
-
 def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.ndarray,
-                                                                  list[str], np.ndarray]:
+                                                                  tuple[str, ...], np.ndarray]:
     """C, D, output names and output values y0 at the operating point.
 
     Joint outputs read the state; frame outputs are world positions whose Jacobian is the linear
@@ -49,7 +33,7 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
     nv, nu = system.nv, len(system.actuated)
     spec = system.outputs
     if spec is None:
-        return np.eye(2 * nv), np.zeros((2 * nv, nu)), system.state_names, np.zeros(2 * nv)
+        return _full_state_output(system)
     p = len(spec.names)
     C = np.zeros((p, 2 * nv))
     y0 = np.zeros(p)
@@ -65,7 +49,16 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
             J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
             C[row:row + 3, :nv] = np.reshape(J, (6, nv))[:3]   # eigenpy flattens 6x1 to (6,)
             y0[row:row + 3] = data.oMf[fid].translation
-    return C, np.zeros((p, nu)), list(spec.names), y0
+    return C, np.zeros((p, nu)), spec.names, y0
+
+
+@functools.cache
+def _full_state_output(system: System) -> tuple[np.ndarray, np.ndarray, tuple[str, ...],
+                                                  np.ndarray]:
+    """y = x: C = I, D = 0 (read-only, built once per system)."""
+    n, nu = 2 * system.nv, len(system.actuated)
+    return (_frozen(np.eye(n)), _frozen(np.zeros((n, nu))), system.state_names,
+            _frozen(np.zeros(n)))
 
 
 def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
@@ -73,7 +66,7 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     """Linear model of an open chain about ``op`` in independent (joint) coordinates."""
     nv = system.nv
     terms = second_order_terms(system, op, derivatives, step)
-    Minv = mass_inverse(system, op.q, terms.M)
+    Minv = system.mass_inverse(op.q)
     A = np.zeros((2 * nv, 2 * nv))
     A[:nv, nv:] = np.eye(nv)
     if terms.C is None:
@@ -84,8 +77,6 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         C_damp = terms.C
     B = np.zeros((2 * nv, len(system.actuated)))
     B[nv:] = Minv[:, system.actuated]
-    Bu = np.zeros((nv, len(system.actuated)))
-    Bu[system.actuated, np.arange(len(system.actuated))] = 1.0
     C, D, out_names, y0 = output_matrices(system, op)
     op_with_y = OperatingPoint(op.q, op.v, op.u, op.a, op.residual, op.equilibrium,
                                op.tolerance, y0, op.lam, op.notes)
@@ -101,7 +92,8 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         from ..derivatives import DEFAULT_STEPS
 
         info["step"] = step if step is not None else DEFAULT_STEPS[terms.backend]
-    return LinearModel(A=A, B=B, C=C, D=D, state_names=system.state_names,
+    return LinearModel(A=_frozen(A), B=_frozen(B), C=C, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names,
-                       M=terms.M, C_damp=C_damp, K=terms.K, Bu=Bu, operating_point=op_with_y,
+                       M=_frozen(terms.M), C_damp=_frozen(C_damp), K=_frozen(terms.K),
+                       Bu=system.input_matrix, operating_point=op_with_y,
                        name=system.scene.name, info=info)
