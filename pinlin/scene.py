@@ -232,14 +232,18 @@ class Scene:
         return System.build(self)
 
 
+def bundled_folder() -> Path:
+    """The folder of bundled models: the installed ``pinlin.urdf`` package, or ``urdf/`` beside
+    the ``pinlin/`` source folder when pinlin is imported from a checkout."""
+    try:
+        return Path(str(resources.files("pinlin.urdf")))
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parent.parent / "urdf"
+
+
 def bundled_scenes() -> dict[str, Path]:
-    """Scenes shipped in ``urdf/`` (installed as ``pinlin.urdf``), by scene file stem."""
-    folder = resources.files("pinlin.urdf")
-    return {
-        Path(str(p)).stem: Path(str(p))
-        for p in folder.iterdir()
-        if str(p).endswith(".toml")
-    }
+    """Scenes shipped in ``urdf/``, by scene file stem."""
+    return {p.stem: p for p in sorted(bundled_folder().glob("*.toml"))}
 
 
 # ------------------------------------------------------------------------------------------------

@@ -100,3 +100,26 @@ def test_bundled_scenes_all_linearize():
     for name, path in pinlin.scene.bundled_scenes().items():
         model = pinlin.linearize(path)
         assert model.name == name and np.all(np.isfinite(model.A))
+
+
+def test_every_loadable_robot_linearizes_or_names_its_massless_joint():
+    from pinlin.robots import loadable_robots
+
+    linearized = 0
+    for name, reason in loadable_robots().items():
+        if reason is not None:
+            continue
+        scene = pinlin.Scene.from_robot(name)
+        try:
+            model = pinlin.linearize(scene, allow_non_equilibrium=True)
+        except pinlin.ModelError as exc:
+            # Independent check: crba at q0 has a zero on the diagonal for the named coordinate.
+            system = scene.system
+            coord = str(exc).split("coordinate '")[1].split("'")[0]
+            M = pin.crba(system.model, system.model.createData(), system.q_ref)
+            assert M[system.coordinate_names.index(coord)].max() == 0.0, name
+            continue
+        modes = pinlin.modal(model)
+        assert np.all(np.isfinite(model.A)) and np.all(np.isfinite(modes.eigenvalues)), name
+        linearized += 1
+    assert linearized >= 60
