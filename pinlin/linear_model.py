@@ -38,12 +38,6 @@ def _unique(names: tuple[str, ...]) -> bool:
     return len(set(names)) == len(names)
 
 
-def _frozen(arr: np.ndarray) -> np.ndarray:
-    """Mark ``arr`` read-only and return it (for arrays handed to a LinearModel)."""
-    arr.flags.writeable = False
-    return arr
-
-
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
     if (isinstance(value, np.ndarray) and value.dtype == np.float64 and value.shape == shape
             and not value.flags.writeable):
