@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import EquilibriumError, SceneError
-from .system import FREE_FLYER, SPHERICAL, JointInfo, System, _one_dof_config
+from .system import FREE_FLYER, SPHERICAL, JointInfo, System, one_dof_configuration
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,7 +82,7 @@ def _joint_configuration(system: System, j: JointInfo, value: Any, q: np.ndarray
         if j.nv != 1:
             raise SceneError(src, fld, f"joint '{j.name}' ({j.kind}) has {j.nq} configuration "
                                        f"values; give a list of {j.nq} or a table")
-        return _one_dof_config(j, float(value))
+        return one_dof_configuration(j, float(value))
     if isinstance(value, tuple):
         if len(value) != j.nq:
             raise SceneError(src, fld, f"joint '{j.name}' ({j.kind}) has {j.nq} configuration "

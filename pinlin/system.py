@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .arrays import read_only
 from .exceptions import ModelError, SceneError, UnknownNameError
 from .robots import load_robot
 from .scene import Scene
@@ -128,7 +129,7 @@ class System:
             if j.nv != 1:
                 raise SceneError(src, fld, f"springs act on 1-DoF joints; '{name}' has {j.nv}")
             self.stiffness[j.idx_v] = spring.stiffness
-            self.q_rest[j.idx_q:j.idx_q + j.nq] = _one_dof_config(j, spring.rest)
+            self.q_rest[j.idx_q:j.idx_q + j.nq] = one_dof_configuration(j, spring.rest)
         self.has_damping = bool(np.any(self.damping))
         self.has_springs = bool(np.any(self.stiffness))
         self.actuated = self._inputs(scene.inputs)
@@ -138,7 +139,7 @@ class System:
         nu = len(self.actuated)
         selection = np.zeros((model.nv, nu))
         selection[self.actuated, np.arange(nu)] = 1.0
-        self.input_matrix = _read_only(selection)
+        self.input_matrix = read_only(selection)
         self.outputs = self._outputs()
         self.data = model.createData()
         self._minv_key: bytes | None = None
@@ -199,7 +200,7 @@ class System:
             diag = np.diag(Minv)
             if not (np.isfinite(Minv.sum()) and diag.min(initial=1.0) > 0.0):
                 self._raise_singular(q)
-            self._minv, self._minv_key = _read_only(Minv), key
+            self._minv, self._minv_key = read_only(Minv), key
         return self._minv
 
     def _raise_singular(self, q: np.ndarray) -> None:
@@ -281,12 +282,7 @@ class System:
         return OutputMap(tuple(rows), tuple(frames), tuple(names))
 
 
-def _read_only(arr: np.ndarray) -> np.ndarray:
-    arr.flags.writeable = False
-    return arr
-
-
-def _one_dof_config(j: JointInfo, value: float) -> np.ndarray:
+def one_dof_configuration(j: JointInfo, value: float) -> np.ndarray:
     """Configuration entries of a 1-DoF joint at position ``value`` [rad or m]."""
     if j.continuous:
         return np.array([np.cos(value), np.sin(value)])

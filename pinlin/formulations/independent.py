@@ -16,8 +16,9 @@ import functools
 import numpy as np
 import pinocchio as pin
 
+from ..arrays import read_only
 from ..derivatives import second_order_terms
-from ..linear_model import LinearModel, _frozen
+from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
 from ..system import System
 
@@ -57,8 +58,8 @@ def _full_state_output(system: System) -> tuple[np.ndarray, np.ndarray, tuple[st
                                                   np.ndarray]:
     """y = x: C = I, D = 0 (read-only, built once per system)."""
     n, nu = 2 * system.nv, len(system.actuated)
-    return (_frozen(np.eye(n)), _frozen(np.zeros((n, nu))), system.state_names,
-            _frozen(np.zeros(n)))
+    return (read_only(np.eye(n)), read_only(np.zeros((n, nu))), system.state_names,
+            read_only(np.zeros(n)))
 
 
 def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
@@ -92,8 +93,8 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         from ..derivatives import DEFAULT_STEPS
 
         info["step"] = step if step is not None else DEFAULT_STEPS[terms.backend]
-    return LinearModel(A=_frozen(A), B=_frozen(B), C=C, D=D, state_names=system.state_names,
+    return LinearModel(A=read_only(A), B=read_only(B), C=C, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names,
-                       M=_frozen(terms.M), C_damp=_frozen(C_damp), K=_frozen(terms.K),
+                       M=read_only(terms.M), C_damp=read_only(C_damp), K=read_only(terms.K),
                        Bu=system.input_matrix, operating_point=op_with_y,
                        name=system.scene.name, info=info)
