@@ -41,6 +41,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .exceptions import SceneError, UnknownRobotError
 
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
@@ -177,8 +179,6 @@ class Scene:
                 ``operating_point``, ``inputs``, ``outputs``, ``name``); each replaces the whole
                 default field.
         """
-        import numpy as np
-
         from .robots import load_robot
 
         effects: dict[str, Any] = {"gravity": list(STANDARD_GRAVITY)}

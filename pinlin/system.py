@@ -14,6 +14,7 @@ nv). A floating base is Pinocchio's free-flyer joint ``root_joint``: configurati
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -186,6 +187,12 @@ class System:
             known = [f.name for f in self.model.frames][1:]
             raise UnknownNameError(self.scene.source, field, name, "frame", known)
         return self.model.getFrameId(name)
+
+    @functools.cached_property
+    def state_output(self) -> tuple[np.ndarray, np.ndarray]:
+        """(C, D) for y = x: the identity and zeros, read-only, built once."""
+        n = 2 * self.nv
+        return read_only(np.eye(n)), read_only(np.zeros((n, len(self.actuated))))
 
     def mass_inverse(self, q: np.ndarray) -> np.ndarray:
         """M(q)^-1 from ``pin.computeMinverse`` (read-only), remembered for the last q: the

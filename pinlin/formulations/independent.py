@@ -11,7 +11,7 @@ Lie groups (d/dt of ``difference(q0, q)`` equals v at q = q0).
 
 from __future__ import annotations
 
-import functools
+import dataclasses
 
 import numpy as np
 import pinocchio as pin
@@ -34,7 +34,7 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
     nv, nu = system.nv, len(system.actuated)
     spec = system.outputs
     if spec is None:
-        return _full_state_output(system)
+        return (*system.state_output, system.state_names, np.zeros(2 * nv))
     p = len(spec.names)
     C = np.zeros((p, 2 * nv))
     y0 = np.zeros(p)
@@ -51,15 +51,6 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
             C[row:row + 3, :nv] = np.reshape(J, (6, nv))[:3]   # eigenpy flattens 6x1 to (6,)
             y0[row:row + 3] = data.oMf[fid].translation
     return C, np.zeros((p, nu)), spec.names, y0
-
-
-@functools.cache
-def _full_state_output(system: System) -> tuple[np.ndarray, np.ndarray, tuple[str, ...],
-                                                  np.ndarray]:
-    """y = x: C = I, D = 0 (read-only, built once per system)."""
-    n, nu = 2 * system.nv, len(system.actuated)
-    return (read_only(np.eye(n)), read_only(np.zeros((n, nu))), system.state_names,
-            read_only(np.zeros(n)))
 
 
 def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
@@ -79,8 +70,7 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     B = np.zeros((2 * nv, len(system.actuated)))
     B[nv:] = Minv[:, system.actuated]
     C, D, out_names, y0 = output_matrices(system, op)
-    op_with_y = OperatingPoint(op.q, op.v, op.u, op.a, op.residual, op.equilibrium,
-                               op.tolerance, y0, op.lam, op.notes)
+    op_with_y = dataclasses.replace(op, y=y0)
     info = {
         "formulation": "independent",
         "derivatives": terms.backend,
