@@ -56,7 +56,7 @@ class SecondOrderTerms:
 
 def velocity_terms(system: System, op: OperatingPoint) -> bool:
     """Whether dH/dv can be non-zero: damping present or a non-zero velocity."""
-    return system.has_damping or bool(np.any(op.v))
+    return system.has_damping or bool(op.v.any())
 
 
 def second_order_terms(system: System, op: OperatingPoint, backend: str = "analytic",
@@ -79,11 +79,11 @@ def _analytic(system: System, op: OperatingPoint) -> SecondOrderTerms:
     K = np.array(dtau_dq)
     if system.has_springs:
         # Springs act on 1-DoF joints, where d(difference)/d(dq) = 1.
-        K[np.diag_indices_from(K)] += system.stiffness
+        K.flat[::K.shape[0] + 1] += system.stiffness
     C = None
     if velocity_terms(system, op):
         C = np.array(dtau_dv)
-        C[np.diag_indices_from(C)] += system.damping
+        C.flat[::C.shape[0] + 1] += system.damping
     return SecondOrderTerms(np.array(M), K, C, "analytic")
 
 

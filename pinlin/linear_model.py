@@ -34,8 +34,9 @@ _FORMATS = (".npz", ".mat", ".json")
 
 
 @functools.lru_cache(maxsize=512)
-def _unique(names: tuple[str, ...]) -> bool:
-    return len(set(names)) == len(names)
+def _valid_names(names: tuple) -> bool:
+    """Whether a tuple holds distinct strings (cached: models of one system share their names)."""
+    return all(type(s) is str for s in names) and len(set(names)) == len(names)
 
 
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
@@ -88,11 +89,11 @@ class LinearModel:
         names = {}
         for k in ("state_names", "input_names", "output_names"):
             v = getattr(self, k)
-            if not (isinstance(v, tuple) and all(type(s) is str for s in v)):
+            if not (type(v) is tuple and _valid_names(v)):
                 v = tuple(str(s) for s in v)
                 object.__setattr__(self, k, v)
-            if not _unique(v):
-                raise ShapeError(f"{k} has duplicates")
+                if not _valid_names(v):
+                    raise ShapeError(f"{k} has duplicates")
             names[k] = v
         n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
         shapes = {"A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m), "E": (n, m), "F": (p, m)}
@@ -109,6 +110,17 @@ class LinearModel:
                                "Bu": (nv, m)}.items():
                 object.__setattr__(self, key, _matrix(key, getattr(self, key), shape))
         object.__setattr__(self, "info", dict(self.info))
+
+    @classmethod
+    def assembled(cls, **fields: Any) -> LinearModel:
+        """A model from a formulation that built it consistent: read-only float64 arrays of
+        matching shapes, tuples of distinct names, a fresh ``info`` dict. Skips the checks of
+        the public constructor (they cost as much as a small linearization); every field of
+        the dataclass must be given.
+        """
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
 
     # ----------------------------------------------------------------------------------------
     @property

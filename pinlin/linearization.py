@@ -17,9 +17,20 @@ from .system import System
 
 
 def operating_point(system: System, *, q: np.ndarray | None = None,
-                    allow_non_equilibrium: bool | None = None) -> OperatingPoint:
-    """The operating point the scene asks for (``q`` replaces the whole configuration)."""
+                    allow_non_equilibrium: bool | None = None,
+                    mass_inverse: np.ndarray | None = None) -> OperatingPoint:
+    """The operating point the scene asks for (``q`` replaces the whole configuration).
+
+    ``mass_inverse`` is M(q0)^-1 when the caller has it already.
+    """
+    q0 = _configuration(system, q)
     spec = system.scene.operating_point
+    allow = spec.allow_non_equilibrium if allow_non_equilibrium is None else allow_non_equilibrium
+    return hold_at_rest(system, q0, allow_non_equilibrium=allow, mass_inverse=mass_inverse)
+
+
+def _configuration(system: System, q: np.ndarray | None) -> np.ndarray:
+    """q0 from the scene, or the validated override ``q``."""
     if q is None:
         q0 = configuration(system)
     else:
@@ -32,8 +43,7 @@ def operating_point(system: System, *, q: np.ndarray | None = None,
         if not pin.isNormalized(system.model, q0, 1e-6):
             raise ShapeError("q is not normalized: its quaternion or (cos, sin) parts must have "
                              "unit norm")
-    allow = spec.allow_non_equilibrium if allow_non_equilibrium is None else allow_non_equilibrium
-    return hold_at_rest(system, q0, allow_non_equilibrium=allow)
+    return q0
 
 
 def linearize(scene: Scene | System | str | Path, *, formulation: str = "independent",
@@ -67,8 +77,13 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
     if system.scene.operating_point.solve != "inputs":
         raise SceneError(system.scene.source, "operating_point.solve",
                          f"'{system.scene.operating_point.solve}' is not supported for this scene")
-    op = operating_point(system, q=q, allow_non_equilibrium=allow_non_equilibrium)
     if formulation != "independent":
         raise PinlinError(f"formulation '{formulation}' needs closed loops, which this version "
                           "does not support yet; use 'independent'")
-    return linearize_independent(system, op, derivatives=derivatives, step=step)
+    q0 = _configuration(system, q)
+    Minv = system.mass_inverse(q0)  # shared by the operating point and the model
+    if allow_non_equilibrium is None:
+        allow_non_equilibrium = system.scene.operating_point.allow_non_equilibrium
+    op = hold_at_rest(system, q0, allow_non_equilibrium=allow_non_equilibrium, mass_inverse=Minv)
+    return linearize_independent(system, op, derivatives=derivatives, step=step,
+                                 mass_inverse=Minv)

@@ -49,6 +49,11 @@ class OperatingPoint:
     lam: np.ndarray | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
 
+    def with_outputs(self, y: np.ndarray) -> OperatingPoint:
+        """The same point with output values ``y``."""
+        return OperatingPoint(self.q, self.v, self.u, self.a, self.residual, self.equilibrium,
+                              self.tolerance, y, self.lam, self.notes)
+
     def as_dict(self) -> dict[str, Any]:
         """Plain-Python form (lists) for JSON export."""
         out: dict[str, Any] = {}
@@ -125,9 +130,12 @@ def residual_tolerance(tau_scale: float) -> float:
     return 1e-9 * max(1.0, tau_scale)
 
 
-def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool = False
-                 ) -> OperatingPoint:
+def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool = False,
+                 mass_inverse: np.ndarray | None = None) -> OperatingPoint:
     """Inputs u0 that hold q0 at rest (``solve = "inputs"``).
+
+    Args:
+        mass_inverse: M(q0)^-1 when the caller has it (needed only off equilibrium).
 
     Raises:
         EquilibriumError: some unactuated coordinate carries a generalized force the inputs
@@ -135,17 +143,18 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
             coordinate and the residual.
     """
     model, data = system.model, system.data
-    if not np.all(np.isfinite(q0)):
+    if not np.isfinite(q0).all():
         raise SceneError(system.scene.source, "operating_point.q", "q0 contains NaN or inf")
     gravity = pin.computeGeneralizedGravity(model, data, q0)
-    tau = gravity - system.spring_torque(q0) if system.has_springs else gravity.copy()
+    tau = gravity - system.spring_torque(q0) if system.has_springs else gravity
     u0 = tau[system.actuated]
     residual = tau.copy()
     residual[system.actuated] = 0.0
+    abs_residual = np.abs(residual)
+    worst = int(abs_residual.argmax()) if residual.size else 0
     tol = residual_tolerance(float(np.abs(gravity).max(initial=0.0)))
-    worst = int(np.argmax(np.abs(residual))) if residual.size else 0
-    equilibrium = bool(residual.size == 0 or abs(residual[worst]) <= tol)
-    notes: list[str] = []
+    equilibrium = bool(residual.size == 0 or abs_residual[worst] <= tol)
+    notes: tuple[str, ...] = ()
     a0 = np.zeros(system.nv)
     if not equilibrium:
         name = system.coordinate_names[worst]
@@ -157,9 +166,11 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
                 "operating_point.allow_non_equilibrium = true",
                 residual, system.coordinate_names)
         # M a0 + g = S u0 + tau_spring and S u0 = g - tau_spring - residual: a0 = -M^-1 residual.
-        a0 = -(system.mass_inverse(q0) @ residual)
-        notes.append(f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
-                     f"'{name}', the model describes the motion about (q0, v = 0) with "
-                     f"|a0| = {np.linalg.norm(a0):.6g}")
+        if mass_inverse is None:
+            mass_inverse = system.mass_inverse(q0)
+        a0 = -(mass_inverse @ residual)
+        notes = (f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
+                 f"'{name}', the model describes the motion about (q0, v = 0) with "
+                 f"|a0| = {np.sqrt(a0 @ a0):.6g}",)
     return OperatingPoint(q=q0, v=np.zeros(system.nv), u=u0, a=a0, residual=residual,
-                          equilibrium=equilibrium, tolerance=tol, notes=tuple(notes))
+                          equilibrium=equilibrium, tolerance=tol, notes=notes)

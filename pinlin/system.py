@@ -143,8 +143,6 @@ class System:
         self.input_matrix = read_only(selection)
         self.outputs = self._outputs()
         self.data = model.createData()
-        self._minv_key: bytes | None = None
-        self._minv = np.zeros((0, 0))
 
     # ----------------------------------------------------------------------------------------
     @classmethod
@@ -195,20 +193,15 @@ class System:
         return read_only(np.eye(n)), read_only(np.zeros((n, len(self.actuated))))
 
     def mass_inverse(self, q: np.ndarray) -> np.ndarray:
-        """M(q)^-1 from ``pin.computeMinverse`` (read-only), remembered for the last q: the
-        operating point and the linear model at the same q share one computation.
+        """M(q)^-1 from ``pin.computeMinverse`` (one recursion, no factorization), symmetric.
 
         Raises:
             ModelError: M is singular (a coordinate moves no inertia).
         """
-        key = q.tobytes()
-        if self._minv_key != key:
-            Minv = np.array(pin.computeMinverse(self.model, self.data, q))
-            diag = np.diag(Minv)
-            if not (np.isfinite(Minv.sum()) and diag.min(initial=1.0) > 0.0):
-                self._raise_singular(q)
-            self._minv, self._minv_key = read_only(Minv), key
-        return self._minv
+        Minv = pin.computeMinverse(self.model, self.data, q)
+        if not (np.isfinite(Minv.sum()) and Minv.diagonal().min(initial=1.0) > 0.0):
+            self._raise_singular(q)
+        return Minv
 
     def _raise_singular(self, q: np.ndarray) -> None:
         M = pin.crba(self.model, self.data, q)

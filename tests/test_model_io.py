@@ -50,3 +50,19 @@ def test_standard_form_removes_input_derivative():
 def test_arrays_are_read_only(model):
     with pytest.raises(ValueError):
         model.A[0, 0] = 1.0
+
+
+@pytest.mark.parametrize("target", ["ur5_arm", "double_pendulum"])
+def test_assembled_models_pass_the_public_checks(target):
+    """Formulations build models without re-validation; the public constructor must accept
+    every field they produce unchanged (shapes, dtypes, read-only arrays, distinct names)."""
+    import dataclasses
+
+    model = pinlin.linearize(target)
+    fields = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    checked = pinlin.LinearModel(**fields)
+    for key in ("A", "B", "C", "D", "M", "C_damp", "K", "Bu"):
+        arr = getattr(model, key)
+        assert arr.dtype == np.float64 and not arr.flags.writeable
+        assert getattr(checked, key) is arr  # accepted as is: already consistent
+    assert checked.info == model.info

@@ -11,8 +11,6 @@ Lie groups (d/dt of ``difference(q0, q)`` equals v at q = q0).
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pinocchio as pin
 
@@ -54,13 +52,17 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
 
 
 def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
-                          step: float | None = None) -> LinearModel:
-    """Linear model of an open chain about ``op`` in independent (joint) coordinates."""
+                          step: float | None = None, mass_inverse: np.ndarray | None = None
+                          ) -> LinearModel:
+    """Linear model of an open chain about ``op`` in independent (joint) coordinates.
+
+    ``mass_inverse`` is M(q0)^-1 when the caller has it already.
+    """
     nv = system.nv
     terms = second_order_terms(system, op, derivatives, step)
-    Minv = system.mass_inverse(op.q)
+    Minv = system.mass_inverse(op.q) if mass_inverse is None else mass_inverse
     A = np.zeros((2 * nv, 2 * nv))
-    A[:nv, nv:] = np.eye(nv)
+    A[:nv, nv:].flat[::nv + 1] = 1.0
     if terms.C is None:
         A[nv:, :nv] = -(Minv @ terms.K)
         C_damp = np.zeros((nv, nv))
@@ -70,7 +72,7 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     B = np.zeros((2 * nv, len(system.actuated)))
     B[nv:] = Minv[:, system.actuated]
     C, D, out_names, y0 = output_matrices(system, op)
-    op_with_y = dataclasses.replace(op, y=y0)
+    op_with_y = op.with_outputs(y0)
     info = {
         "formulation": "independent",
         "derivatives": terms.backend,
@@ -83,8 +85,8 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         from ..derivatives import DEFAULT_STEPS
 
         info["step"] = step if step is not None else DEFAULT_STEPS[terms.backend]
-    return LinearModel(A=read_only(A), B=read_only(B), C=C, D=D, state_names=system.state_names,
-                       input_names=system.input_names, output_names=out_names,
-                       M=read_only(terms.M), C_damp=read_only(C_damp), K=read_only(terms.K),
-                       Bu=system.input_matrix, operating_point=op_with_y,
-                       name=system.scene.name, info=info)
+    return LinearModel.assembled(
+        A=read_only(A), B=read_only(B), C=read_only(C), D=read_only(D),
+        state_names=system.state_names, input_names=system.input_names, output_names=out_names,
+        E=None, F=None, M=read_only(terms.M), C_damp=read_only(C_damp), K=read_only(terms.K),
+        Bu=system.input_matrix, operating_point=op_with_y, name=system.scene.name, info=info)
