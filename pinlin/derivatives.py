@@ -56,7 +56,7 @@ class SecondOrderTerms:
 
 def velocity_terms(system: System, op: OperatingPoint) -> bool:
     """Whether dH/dv can be non-zero: damping present or a non-zero velocity."""
-    return system.has_damping or bool(op.v.any())
+    return system.has_damping or system.rotation is not None or bool(op.v.any())
 
 
 def second_order_terms(system: System, op: OperatingPoint, backend: str = "analytic",
@@ -74,22 +74,20 @@ def second_order_terms(system: System, op: OperatingPoint, backend: str = "analy
 
 
 def _analytic(system: System, op: OperatingPoint) -> SecondOrderTerms:
-    model, data = system.model, system.data
-    dtau_dq, dtau_dv, M = pin.computeRNEADerivatives(model, data, op.q, op.v, op.a)
-    K = np.array(dtau_dq)
+    K, dtau_dv, M = system.rnea_derivatives(op.q, op.v, op.a)
     if system.has_springs:
         # Springs act on 1-DoF joints, where d(difference)/d(dq) = 1.
         K.flat[::K.shape[0] + 1] += system.stiffness
     C = None
     if velocity_terms(system, op):
-        C = np.array(dtau_dv)
+        C = dtau_dv
         C.flat[::C.shape[0] + 1] += system.damping
-    return SecondOrderTerms(np.array(M), K, C, "analytic")
+    return SecondOrderTerms(M, K, C, "analytic")
 
 
 def residual_forces(system: System, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
     """H without the input term: rnea(q, v, a) - tau_spring(q) - tau_damping(v) [N*m or N]."""
-    tau = pin.rnea(system.model, system.data, q, v, a).copy()
+    tau = system.rnea(q, v, a)
     if system.has_springs:
         tau -= system.spring_torque(q)
     if system.has_damping:
@@ -115,6 +113,4 @@ def _numerical(system: System, op: OperatingPoint, backend: str, h: float) -> Se
                 col += w * residual_forces(system, op.q, op.v + k * h * e, op.a)
             C[:, j] = col / h
         e[j] = 0.0
-    M = pin.crba(model, system.data, op.q).copy()
-    M = np.triu(M) + np.triu(M, 1).T
-    return SecondOrderTerms(M, K, C, backend)
+    return SecondOrderTerms(system.mass_matrix(op.q), K, C, backend)

@@ -142,10 +142,9 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
             cannot cancel and ``allow_non_equilibrium`` is False. The message names the worst
             coordinate and the residual.
     """
-    model, data = system.model, system.data
     if not np.isfinite(q0).all():
         raise SceneError(system.scene.source, "operating_point.q", "q0 contains NaN or inf")
-    gravity = pin.computeGeneralizedGravity(model, data, q0)
+    gravity = system.static_force(q0)
     tau = gravity - system.spring_torque(q0) if system.has_springs else gravity
     u0 = tau[system.actuated]
     residual = tau.copy()

@@ -16,10 +16,20 @@ File format (paths relative to the scene file)::
     armature = { shoulder = 0.01 }       # [kg*m^2] or [kg]; true: from the robot's SRDF
     damping = { shoulder = 0.5 }         # viscous [N*m*s/rad] or [N*s/m]; true: URDF <dynamics>
     springs = { shoulder = { stiffness = 20.0, rest = 0.0 } }   # [N*m/rad], [rad]
+    rotation = { axis = [0, 0, 1], rate = 3.0 }   # whole scene spins steadily [rad/s]
+    mimic = true                         # URDF <mimic> joints become couplings
+
+    [[loops]]                            # closures the URDF tree cannot express
+    name = "closure"
+    type = "point"                       # point (3 rows) | weld (6 rows)
+    frame1 = "coupler_tip"
+    frame2 = "rocker_tip"
 
     [operating_point]
     q = { shoulder = 0.3 }               # [rad] or [m]; others: reference posture or neutral
-    solve = "inputs"                     # u0 that holds q0 at rest
+    independent = ["shoulder"]           # with loops: coordinates held during assembly = z
+    solve = "inputs"                     # u0 that holds q0 at rest; "positions": passive q0
+    u = { shoulder = 0.0 }               # inputs for solve = "positions" [N*m or N]
     allow_non_equilibrium = false        # true: linearize even if q0 cannot be held
 
     [inputs]
@@ -47,11 +57,13 @@ from .exceptions import SceneError, UnknownRobotError
 
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 
-_TOP_KEYS = ("name", "urdf", "robot", "base", "effects", "operating_point", "inputs", "outputs")
-_EFFECT_KEYS = ("gravity", "armature", "damping", "springs")
-_PLANNED_EFFECTS = ("rotation", "mimic")
-_OP_KEYS = ("q", "solve", "allow_non_equilibrium")
-_SOLVE_MODES = ("inputs",)
+_TOP_KEYS = ("name", "urdf", "robot", "base", "effects", "operating_point", "inputs", "outputs",
+             "loops")
+_EFFECT_KEYS = ("gravity", "armature", "damping", "springs", "rotation", "mimic")
+_OP_KEYS = ("q", "independent", "solve", "u", "allow_non_equilibrium")
+_SOLVE_MODES = ("inputs", "positions")
+_LOOP_KEYS = ("name", "type", "frame1", "frame2")
+LOOP_TYPES = ("point", "weld")
 
 
 @dataclass(frozen=True)
@@ -71,6 +83,36 @@ JointValues = Mapping[str, float | tuple[float, ...]]
 
 
 @dataclass(frozen=True)
+class Rotation:
+    """Steady rotation of the whole scene about a world axis through the origin.
+
+    Attributes:
+        axis: Unit axis in the world frame.
+        rate: Angular rate [rad/s] (sign by the right-hand rule about ``axis``).
+    """
+
+    axis: tuple[float, float, float]
+    rate: float
+
+
+@dataclass(frozen=True)
+class Loop:
+    """A loop closure between two frames of the URDF tree.
+
+    Attributes:
+        name: Loop name (used in constraint-force and note names).
+        type: ``"point"``: the frame origins coincide (3 rows); ``"weld"``: the frames coincide
+            (origins and orientations, 6 rows).
+        frame1, frame2: URDF frame (link) names.
+    """
+
+    name: str
+    type: str
+    frame1: str
+    frame2: str
+
+
+@dataclass(frozen=True)
 class Effects:
     """The physical effects a scene calls for; anything absent is not simulated.
 
@@ -81,12 +123,17 @@ class Effects:
         damping: Viscous joint damping per joint [N*m*s/rad] or [N*s/m]; True takes the URDF
             ``<dynamics damping>`` values; None: no damping.
         springs: Joint springs by joint name; None: no springs.
+        rotation: Steady rotation of the scene, or None.
+        mimic: Whether the URDF's ``<mimic>`` tags couple their joints (holonomic constraints
+            q_mimic = multiplier * q_joint + offset); False: mimic joints move freely.
     """
 
     gravity: tuple[float, float, float] | None = None
     armature: JointValues | bool | None = None
     damping: JointValues | bool | None = None
     springs: Mapping[str, Spring] | None = None
+    rotation: Rotation | None = None
+    mimic: bool = False
 
     def in_play(self) -> list[str]:
         """Names of the effects present, in a fixed order."""
@@ -102,12 +149,18 @@ class OperatingPointSpec:
             angle), a list of the joint's raw configuration values, or for a free-flyer or
             spherical joint a table ``{position = [x, y, z], rpy = [r, p, y]}`` /
             ``{quaternion = [x, y, z, w]}``. Joints not named keep the reference posture.
-        solve: ``"inputs"``: find the inputs u0 that hold q0 at rest.
+        independent: With loops or mimic couplings: the joints held at their ``q`` values
+            during assembly, used as independent coordinates z; empty: pinlin chooses.
+        solve: ``"inputs"``: find the inputs u0 that hold q0 at rest; ``"positions"``: find the
+            passive equilibrium q0 (``q`` is the starting guess) for the inputs ``u``.
+        u: Input values by joint name for ``solve = "positions"`` [N*m or N]; others zero.
         allow_non_equilibrium: Linearize about (q0, v = 0, u0) even when u0 cannot hold q0.
     """
 
     q: Mapping[str, Any] = field(default_factory=dict)
+    independent: tuple[str, ...] = ()
     solve: str = "inputs"
+    u: JointValues = field(default_factory=dict)
     allow_non_equilibrium: bool = False
 
 
@@ -138,6 +191,7 @@ class Scene:
         operating_point: Operating point specification.
         inputs: ``"all"`` (every joint except a floating base) or the actuated joint names.
         outputs: Requested outputs, or None for the full state.
+        loops: Loop closures.
         source: Scene file the scene came from, for error messages; None if built in Python.
     """
 
@@ -149,6 +203,7 @@ class Scene:
     operating_point: OperatingPointSpec = field(default_factory=OperatingPointSpec)
     inputs: str | tuple[str, ...] = "all"
     outputs: Outputs | None = None
+    loops: tuple[Loop, ...] = ()
     source: Path | None = None
 
     # ----------------------------------------------------------------------------------------
@@ -323,7 +378,7 @@ def _per_joint(src, fld: str, x: Any, unit: str) -> JointValues | bool:
 
 def _parse_effects(src, x: Any) -> Effects:
     table = _table(src, "effects", x)
-    _check_keys(src, "effects", table, _EFFECT_KEYS, _PLANNED_EFFECTS)
+    _check_keys(src, "effects", table, _EFFECT_KEYS)
     gravity = None
     if "gravity" in table:
         g = table["gravity"]
@@ -350,7 +405,47 @@ def _parse_effects(src, x: Any) -> Effects:
                         unit=" [N*m/rad or N/m]"),
                 _number(src, f"{f}.rest", spec.get("rest", 0.0), unit=" [rad or m]"),
             )
-    return Effects(gravity, armature, damping, springs)
+    rotation = None
+    if "rotation" in table and table["rotation"] is not False:
+        f = "effects.rotation"
+        spec = _table(src, f, table["rotation"])
+        _check_keys(src, f, spec, ("axis", "rate"))
+        for key in ("axis", "rate"):
+            if key not in spec:
+                raise SceneError(src, f"{f}.{key}", "missing")
+        axis = np.array(_numbers(src, f"{f}.axis", spec["axis"], length=3))
+        norm = float(np.linalg.norm(axis))
+        if norm == 0.0:
+            raise SceneError(src, f"{f}.axis", "expected a non-zero vector")
+        rotation = Rotation(tuple(float(a) for a in axis / norm),
+                            _number(src, f"{f}.rate", spec["rate"], unit=" [rad/s]"))
+    mimic = table.get("mimic", False)
+    if not isinstance(mimic, bool):
+        raise SceneError(src, "effects.mimic", f"expected true or false, got {mimic!r}")
+    return Effects(gravity, armature, damping, springs, rotation, mimic)
+
+
+def _parse_loops(src, x: Any) -> tuple[Loop, ...]:
+    if not isinstance(x, list):
+        raise SceneError(src, "loops", "expected an array of tables ([[loops]])")
+    loops: list[Loop] = []
+    for i, entry in enumerate(x):
+        fld = f"loops[{i}]"
+        spec = _table(src, fld, entry)
+        _check_keys(src, fld, spec, _LOOP_KEYS)
+        for key in ("frame1", "frame2"):
+            if key not in spec:
+                raise SceneError(src, f"{fld}.{key}", "missing; expected a frame (link) name")
+        name = _string(src, f"{fld}.name", spec.get("name", f"loop{i}"))
+        if any(lp.name == name for lp in loops):
+            raise SceneError(src, f"{fld}.name", f"loop name '{name}' is used twice")
+        f1 = _string(src, f"{fld}.frame1", spec["frame1"])
+        f2 = _string(src, f"{fld}.frame2", spec["frame2"])
+        if f1 == f2:
+            raise SceneError(src, f"{fld}.frame2", "must differ from frame1")
+        loops.append(Loop(name, _string(src, f"{fld}.type", spec.get("type", "point"),
+                                        LOOP_TYPES), f1, f2))
+    return tuple(loops)
 
 
 def _parse_joint_position(src, fld: str, x: Any) -> Any:
@@ -384,17 +479,27 @@ def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     _check_keys(src, "operating_point", table, _OP_KEYS)
     q = {j: _parse_joint_position(src, f"operating_point.q.{j}", v)
          for j, v in _table(src, "operating_point.q", table.get("q", {})).items()}
+    independent = _names(src, "operating_point.independent", table.get("independent", []))
     solve = _string(src, "operating_point.solve", table.get("solve", "inputs"), _SOLVE_MODES)
+    u: dict[str, float | tuple[float, ...]] = {}
+    for joint, value in _table(src, "operating_point.u", table.get("u", {})).items():
+        f = f"operating_point.u.{joint}"
+        u[joint] = (_numbers(src, f, value, unit=" [N*m or N]") if isinstance(value, list)
+                    else _number(src, f, value, unit=" [N*m or N]"))
+    if u and solve != "positions":
+        raise SceneError(src, "operating_point.u", "inputs are given only with "
+                                                   "solve = \"positions\" (with \"inputs\" "
+                                                   "pinlin finds them)")
     allow = table.get("allow_non_equilibrium", False)
     if not isinstance(allow, bool):
         raise SceneError(src, "operating_point.allow_non_equilibrium",
                          f"expected true or false, got {allow!r}")
-    return OperatingPointSpec(q, solve, allow)
+    return OperatingPointSpec(q, independent, solve, u, allow)
 
 
 def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:
     data = _table(src, None, data)
-    _check_keys(src, None, data, _TOP_KEYS, ("loops",))
+    _check_keys(src, None, data, _TOP_KEYS)
     has_urdf, has_robot = "urdf" in data, "robot" in data
     if has_urdf == has_robot:
         raise SceneError(src, "urdf", "give exactly one of 'urdf' (a file) or 'robot' "
@@ -429,5 +534,6 @@ def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:
         if not outputs.frames and not outputs.joints:
             raise SceneError(src, "outputs", "is empty; name frames or joints, or leave the "
                                              "table out to output the whole state")
+    loops = _parse_loops(src, data["loops"]) if "loops" in data else ()
     return Scene(name=name, urdf=urdf, robot=robot, base=base, effects=effects,
-                 operating_point=op, inputs=inputs, outputs=outputs, source=src)
+                 operating_point=op, inputs=inputs, outputs=outputs, loops=loops, source=src)

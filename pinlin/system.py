@@ -141,8 +141,11 @@ class System:
         selection = np.zeros((model.nv, nu))
         selection[self.actuated, np.arange(nu)] = 1.0
         self.input_matrix = read_only(selection)
-        self.outputs = self._outputs()
         self.data = model.createData()
+        self.rotation = eff.rotation
+        self._build_kinematic_model()
+        self.outputs = self._outputs()
+        self.constraints = self._constraints()
 
     # ----------------------------------------------------------------------------------------
     @classmethod
@@ -180,11 +183,95 @@ class System:
                 from None
 
     def frame_id(self, name: str, field: str | None = None) -> int:
-        """Frame index of ``name`` or an :class:`UnknownNameError` naming ``field``."""
-        if not self.model.existFrame(name):
+        """Index of frame ``name`` in :attr:`kin_model`, or an :class:`UnknownNameError`
+        naming ``field``."""
+        if name.startswith("__spin") or not self.kin_model.existFrame(name):
             known = [f.name for f in self.model.frames][1:]
             raise UnknownNameError(self.scene.source, field, name, "frame", known)
-        return self.model.getFrameId(name)
+        return self.kin_model.getFrameId(name)
+
+    @property
+    def urdf_path(self) -> Path:
+        """The URDF file the model comes from."""
+        if self.scene.urdf is not None:
+            return Path(self.scene.urdf)
+        return Path(load_robot(self.scene.robot).urdf_path)
+
+    # ----------------------------------------------------------------------------------------
+    # Dynamics, with the steady rotation of the scene when it has one. A rotating scene is
+    # computed on a model with one more joint at the root, a revolute joint about the rotation
+    # axis whose velocity is held at the rate and whose acceleration is zero: rnea on that
+    # model gives the centrifugal and Coriolis forces of the rotating frame exactly, and the
+    # spin coordinate (the first) is dropped from every result.
+
+    def _build_kinematic_model(self) -> None:
+        """:attr:`kin_model` / :attr:`kin_data`: the model every dynamics call runs on."""
+        if self.rotation is None:
+            self.kin_model, self.kin_data = self.model, self.data
+            self.kin_columns = slice(None)
+            return
+        g = np.asarray(self.scene.effects.gravity or (0.0, 0.0, 0.0))
+        axis = np.asarray(self.rotation.axis)
+        if np.linalg.norm(np.cross(g, axis)) > 1e-12 * max(1.0, np.linalg.norm(g)):
+            raise SceneError(self.scene.source, "effects.rotation.axis",
+                             "a steady rotation needs gravity along the rotation axis (or no "
+                             f"gravity); gravity is {g.tolist()}, axis {axis.tolist()}")
+        spin = pin.Model()
+        jid = spin.addJoint(0, pin.JointModelRevoluteUnaligned(axis), pin.SE3.Identity(),
+                            "__spin__")
+        spin.appendBodyToJoint(jid, pin.Inertia.Zero(), pin.SE3.Identity())
+        fid = spin.addFrame(pin.Frame("__spin_body__", jid, 0, pin.SE3.Identity(),
+                                      pin.FrameType.BODY))
+        kin = pin.appendModel(spin, self.model, fid, pin.SE3.Identity())
+        kin.armature = np.concatenate([[0.0], self.model.armature])
+        kin.gravity = self.model.gravity
+        self.kin_model, self.kin_data = kin, kin.createData()
+        self.kin_columns = slice(1, None)
+
+    def kin_q(self, q: np.ndarray) -> np.ndarray:
+        """Configuration of :attr:`kin_model` (spin angle 0 first when rotating)."""
+        return q if self.rotation is None else np.concatenate([[0.0], q])
+
+    def kin_v(self, v: np.ndarray, spin: bool = True) -> np.ndarray:
+        """Velocity of :attr:`kin_model`: the relative velocity v, after the spin rate when
+        rotating (``spin=False``: after zero) [rad/s, m/s]."""
+        if self.rotation is None:
+            return v
+        return np.concatenate([[self.rotation.rate if spin else 0.0], v])
+
+    def _kin_a(self, a: np.ndarray) -> np.ndarray:
+        return a if self.rotation is None else np.concatenate([[0.0], a])
+
+    def static_force(self, q: np.ndarray) -> np.ndarray:
+        """Generalized force at rest: gravity (and centrifugal when rotating) [N*m or N]."""
+        if self.rotation is None:
+            return pin.computeGeneralizedGravity(self.model, self.data, q).copy()
+        z = np.zeros(self.nv)
+        return pin.rnea(self.kin_model, self.kin_data, self.kin_q(q), self.kin_v(z),
+                        self._kin_a(z))[1:].copy()
+
+    def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Inverse dynamics M a + b(q, v) (rotating frame when rotating) [N*m or N]."""
+        if self.rotation is None:
+            return pin.rnea(self.model, self.data, q, v, a).copy()
+        return pin.rnea(self.kin_model, self.kin_data, self.kin_q(q), self.kin_v(v),
+                        self._kin_a(a))[1:].copy()
+
+    def rnea_derivatives(self, q: np.ndarray, v: np.ndarray, a: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(d tau/d q, d tau/d v, M) of :meth:`rnea`, fresh arrays."""
+        if self.rotation is None:
+            dq, dv, M = pin.computeRNEADerivatives(self.model, self.data, q, v, a)
+            return np.array(dq), np.array(dv), np.array(M)
+        dq, dv, M = pin.computeRNEADerivatives(self.kin_model, self.kin_data, self.kin_q(q),
+                                               self.kin_v(v), self._kin_a(a))
+        return dq[1:, 1:].copy(), dv[1:, 1:].copy(), M[1:, 1:].copy()
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q), symmetric, fresh array [kg, kg*m^2]."""
+        M = pin.crba(self.kin_model, self.kin_data, self.kin_q(q))[self.kin_columns,
+                                                                   self.kin_columns]
+        return np.triu(M) + np.triu(M, 1).T
 
     @functools.cached_property
     def state_output(self) -> tuple[np.ndarray, np.ndarray]:
@@ -198,13 +285,17 @@ class System:
         Raises:
             ModelError: M is singular (a coordinate moves no inertia).
         """
-        Minv = pin.computeMinverse(self.model, self.data, q)
+        if self.rotation is None:
+            Minv = pin.computeMinverse(self.model, self.data, q)
+        else:  # the spin coordinate is prescribed: invert the block of the other coordinates
+            M = self.mass_matrix(q)
+            Minv = np.linalg.inv(M) if np.all(np.isfinite(M)) else M
         if not (np.isfinite(Minv.sum()) and Minv.diagonal().min(initial=1.0) > 0.0):
             self._raise_singular(q)
         return Minv
 
     def _raise_singular(self, q: np.ndarray) -> None:
-        M = pin.crba(self.model, self.data, q)
+        M = self.mass_matrix(q)
         diag = np.diag(M)
         bad = int(np.argmin(np.where(np.isfinite(diag), diag, -np.inf)))
         raise ModelError(f"scene '{self.scene.name}': the mass matrix is singular at q0: "
@@ -280,6 +371,17 @@ class System:
             frames.append((len(names), fid))
             names.extend(f"p:{fname}[{ax}]" for ax in "xyz")
         return OutputMap(tuple(rows), tuple(frames), tuple(names))
+
+    def _constraints(self):
+        from .constraints import ConstraintSet, read_mimic_tags
+
+        mimics = ()
+        if self.scene.effects.mimic:
+            mimics = read_mimic_tags(self.urdf_path)
+            if not mimics:
+                raise SceneError(self.scene.source, "effects.mimic",
+                                 f"the URDF {self.urdf_path} has no <mimic> joints")
+        return ConstraintSet(self, mimics)
 
 
 def one_dof_configuration(j: JointInfo, value: float) -> np.ndarray:

@@ -88,8 +88,8 @@ BAD_SCENES = {
                       GOOD_URDF, "has 1 configuration values, got 2"),
     "armature_true_on_urdf": ('urdf = "robot.urdf"\n[effects]\narmature = true\n', GOOD_URDF,
                               "this robot has none"),
-    "unsupported_loops": ('urdf = "robot.urdf"\n[[loops]]\nname = "x"\n', GOOD_URDF,
-                          "field 'loops': is not supported"),
+    "loop_without_frames": ('urdf = "robot.urdf"\n[[loops]]\nname = "x"\n', GOOD_URDF,
+                            "field 'loops[0].frame1': missing"),
     "non_unit_quaternion": ('robot = "solo12"\n[operating_point]\nq = { root_joint = { '
                             'quaternion = [0.0, 0.0, 0.0, 2.0] } }\n', {}, "unit quaternion"),
     "not_equilibrium": ('robot = "solo12"\n[effects]\ngravity = true\n', {},

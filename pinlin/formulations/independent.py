@@ -41,12 +41,13 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
         C[row, col] = 1.0
         y0[row] = x0[col]
     if spec.frames:
-        model, data = system.model, system.data
-        pin.computeJointJacobians(model, data, op.q)
+        model, data = system.kin_model, system.kin_data
+        pin.computeJointJacobians(model, data, system.kin_q(op.q))
         pin.updateFramePlacements(model, data)
         for row, fid in spec.frames:
             J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-            C[row:row + 3, :nv] = np.reshape(J, (6, nv))[:3]   # eigenpy flattens 6x1 to (6,)
+            J = np.reshape(J, (6, model.nv))[:, system.kin_columns]  # eigenpy flattens 6x1
+            C[row:row + 3, :nv] = J[:3]
             y0[row:row + 3] = data.oMf[fid].translation
     return C, np.zeros((p, nu)), spec.names, y0
 
