@@ -9,6 +9,7 @@ Typical use::
 """
 
 from .exceptions import (
+    AssemblyError,
     EquilibriumError,
     ModelError,
     ModelFileError,
@@ -31,6 +32,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Effects",
+    "AssemblyError",
     "EquilibriumError",
     "LinearModel",
     "ModalAnalysis",

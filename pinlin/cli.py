@@ -53,9 +53,15 @@ def _print_operating_point(model, system) -> None:
           f"{model.n_inputs} inputs, {model.n_outputs} outputs; base {model.info['base']}")
     effects = model.info["effects"]
     print(f"effects in play: {', '.join(effects) if effects else 'none'}")
-    print(f"linear model: {model.info['formulation']} coordinates, "
+    extra = ""
+    if "alpha" in model.info:
+        extra = (f", alpha = {model.info['alpha']:g}, mu = {model.info['mu']:g}, "
+                 f"Omega = {model.info['omega']:g} rad/s")
+    elif "basis" in model.info:
+        extra = f", {model.info['basis']} basis"
+    print(f"linear model: {model.info['formulation']} formulation, "
           f"{model.info['derivatives']} derivatives"
-          + (f" (step {model.info['step']:g})" if "step" in model.info else ""))
+          + (f" (step {model.info['step']:g})" if "step" in model.info else "") + extra)
     print("operating point:")
     for name, j in system.joints.items():
         values = op.q[j.idx_q:j.idx_q + j.nq]
@@ -64,6 +70,9 @@ def _print_operating_point(model, system) -> None:
         print(f"  q[{name}] = {shown}")
     for name, u in zip(model.input_names, op.u, strict=True):
         print(f"  {name} = {u:.6g}")
+    if op.lam is not None:
+        for name, lam in zip(op.lam_names, op.lam, strict=True):
+            print(f"  lam[{name}] = {lam:.6g}")
     worst = float(np.abs(op.residual).max(initial=0.0))
     state = "equilibrium" if op.equilibrium else "NOT an equilibrium"
     print(f"  residual max |r| = {worst:.3e} (tolerance {op.tolerance:.1e}): {state}")
@@ -83,7 +92,8 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     scene = Scene.resolve(args.target)
     model = linearize(scene, formulation=args.formulation, derivatives=args.derivatives,
                       step=args.step,
-                      allow_non_equilibrium=True if args.allow_non_equilibrium else None)
+                      allow_non_equilibrium=True if args.allow_non_equilibrium else None,
+                      basis=args.basis, alpha=args.alpha, mu=args.mu, omega=args.omega)
     _print_operating_point(model, scene.system)
     print()
     print(modal(model, method=args.method))
@@ -118,7 +128,7 @@ def _cmd_robots(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from .derivatives import BACKENDS
-    from .formulations import FORMULATIONS
+    from .formulations import BASES, FORMULATIONS, PENALTY_DEFAULTS
     from .modal import METHODS
 
     parser = _Parser(prog="pinlin", description="Linear models of multibody systems.")
@@ -130,6 +140,16 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--derivatives", choices=BACKENDS, default="analytic")
     lin.add_argument("--step", type=float, default=None,
                      help="finite-difference step for fd3/fd5 [rad, m, rad/s, m/s]")
+    lin.add_argument("--basis", choices=BASES, default="partitioned",
+                     help="independent coordinates of a mechanism with loops")
+    lin.add_argument("--alpha", type=float, default=None,
+                     help=f"penalty factor (penalty, canonical; default "
+                          f"{PENALTY_DEFAULTS['alpha']:g})")
+    lin.add_argument("--mu", type=float, default=None,
+                     help=f"penalty damping ratio (default {PENALTY_DEFAULTS['mu']:g})")
+    lin.add_argument("--omega", type=float, default=None,
+                     help=f"penalty natural frequency [rad/s] (default "
+                          f"{PENALTY_DEFAULTS['omega']:g})")
     lin.add_argument("--method", choices=METHODS, default="auto", help="eigensolver")
     lin.add_argument("--allow-non-equilibrium", action="store_true",
                      help="linearize even if the inputs cannot hold q0 at rest")

@@ -2,10 +2,13 @@
 
 The residual form of the equations of motion is::
 
-    H(q, v, a, u) = rnea(q, v, a) - tau_spring(q) - tau_damping(v) - S u = 0
+    H(q, v, a, u) = rnea(q, v, a) - tau_spring(q) - tau_damping(v) - S u - Phi_q(q)^T lam = 0
 
 so that M = dH/da, K = dH/d(dq), C = dH/dv and Bu = S, where dq is the tangent-space
-perturbation q = ``pin.integrate(q0, dq)``. Backends:
+perturbation q = ``pin.integrate(q0, dq)``. With constraints, lam is held at its value at the
+operating point and K carries the geometric stiffness -lam^T Phi_qq of the constraint forces
+(exact by polarization in the analytic backend, differenced with the rest of H in fd3/fd5).
+A rotating scene's rnea includes the centrifugal and Coriolis forces. Backends:
 
 - ``analytic``: Pinocchio's ``computeRNEADerivatives`` (which also returns M).
 - ``fd3``: central differences, O(h^2) (eq. 9.54/9.56).
@@ -78,6 +81,8 @@ def _analytic(system: System, op: OperatingPoint) -> SecondOrderTerms:
     if system.has_springs:
         # Springs act on 1-DoF joints, where d(difference)/d(dq) = 1.
         K.flat[::K.shape[0] + 1] += system.stiffness
+    if op.lam is not None:
+        K -= system.constraints.hessian(op.q, op.lam)
     C = None
     if velocity_terms(system, op):
         C = dtau_dv
@@ -85,9 +90,13 @@ def _analytic(system: System, op: OperatingPoint) -> SecondOrderTerms:
     return SecondOrderTerms(M, K, C, "analytic")
 
 
-def residual_forces(system: System, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """H without the input term: rnea(q, v, a) - tau_spring(q) - tau_damping(v) [N*m or N]."""
+def residual_forces(system: System, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                    lam: np.ndarray | None = None) -> np.ndarray:
+    """H without the input term: rnea(q, v, a) - tau_spring(q) - tau_damping(v)
+    - Phi_q(q)^T lam [N*m or N]."""
     tau = system.rnea(q, v, a)
+    if lam is not None:
+        tau -= system.constraints.jacobian(q).T @ lam
     if system.has_springs:
         tau -= system.spring_torque(q)
     if system.has_damping:
@@ -105,7 +114,8 @@ def _numerical(system: System, op: OperatingPoint, backend: str, h: float) -> Se
         e[j] = 1.0
         col = np.zeros(nv)
         for k, w in stencil:
-            col += w * residual_forces(system, pin.integrate(model, op.q, k * h * e), op.v, op.a)
+            col += w * residual_forces(system, pin.integrate(model, op.q, k * h * e), op.v, op.a,
+                                       op.lam)
         K[:, j] = col / h
         if C is not None:
             col = np.zeros(nv)

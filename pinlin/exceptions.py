@@ -128,6 +128,15 @@ class EquilibriumError(PinlinError):
         super().__init__(message)
 
 
+class AssemblyError(EquilibriumError):
+    """The loops of a mechanism cannot be closed from the given configuration.
+
+    Attributes:
+        residual: Constraint residual per row [m or rad].
+        names: Constraint row names matching ``residual``.
+    """
+
+
 class ShapeError(PinlinError):
     """Matrices or vectors handed to pinlin have inconsistent sizes."""
 

@@ -30,6 +30,7 @@ from .operating_point import OperatingPoint
 
 _FIRST_ORDER = ("A", "B", "C", "D", "E", "F")
 _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
+_CONSTRAINT = ("G",)
 _FORMATS = (".npz", ".mat", ".json")
 
 
@@ -64,6 +65,9 @@ class LinearModel:
         M, C_damp, K, Bu: Second-order matrices for mechanical models (nv = n/2), else None.
         operating_point: The point the model is taken about (mechanical models).
         name: Model name (scene or graph name).
+        G: Constraint Jacobian Phi_q (independent rows, m x n/2) of a model in dependent
+            coordinates (penalty, canonical), used to tell constraint modes from physical ones;
+            None otherwise.
         info: Metadata: formulation, derivatives, effects in play, notes, whether velocity
             terms are present (``velocity_terms``), error estimates.
     """
@@ -82,6 +86,7 @@ class LinearModel:
     K: np.ndarray | None = None
     Bu: np.ndarray | None = None
     operating_point: OperatingPoint | None = None
+    G: np.ndarray | None = None
     name: str = ""
     info: Mapping[str, Any] = field(default_factory=dict)
 
@@ -109,6 +114,11 @@ class LinearModel:
             for key, shape in {"M": (nv, nv), "C_damp": (nv, nv), "K": (nv, nv),
                                "Bu": (nv, m)}.items():
                 object.__setattr__(self, key, _matrix(key, getattr(self, key), shape))
+        if self.G is not None:
+            G = np.asarray(self.G, dtype=float)
+            if G.ndim != 2 or 2 * G.shape[1] != n:
+                raise ShapeError(f"G must have n/2 = {n // 2} columns, got shape {G.shape}")
+            object.__setattr__(self, "G", _matrix("G", G, G.shape))
         object.__setattr__(self, "info", dict(self.info))
 
     @classmethod
@@ -175,7 +185,7 @@ class LinearModel:
 
     # ----------------------------------------------------------------------------------------
     def _arrays(self) -> dict[str, np.ndarray]:
-        return {k: getattr(self, k) for k in _FIRST_ORDER + _SECOND_ORDER
+        return {k: getattr(self, k) for k in _FIRST_ORDER + _SECOND_ORDER + _CONSTRAINT
                 if getattr(self, k) is not None}
 
     def save(self, path: str | Path) -> Path:
@@ -240,8 +250,10 @@ class LinearModel:
                 for k in ("state_names", "input_names", "output_names"):
                     doc[k] = [str(np.asarray(s).ravel()[0]) for s in np.asarray(doc[k]).ravel()]
                 meta = json.loads(str(np.asarray(doc.pop("meta")).ravel()[0]))
-            kwargs = {k: np.asarray(doc[k], float) for k in _FIRST_ORDER + _SECOND_ORDER
-                      if k in doc}
+            kwargs = {k: np.asarray(doc[k], float)
+                      for k in _FIRST_ORDER + _SECOND_ORDER + _CONSTRAINT if k in doc}
+            if "G" in kwargs and kwargs["G"].ndim == 1:  # zero rows read back flat
+                kwargs["G"] = kwargs["G"].reshape(-1, len(doc["state_names"]) // 2)
             op = meta.get("operating_point")
             return cls(**kwargs,
                        state_names=[str(s) for s in doc["state_names"]],
@@ -274,4 +286,5 @@ def _op_from_dict(d: Mapping[str, Any]) -> OperatingPoint:
     return OperatingPoint(q=arr("q"), v=arr("v"), u=arr("u"), a=arr("a"),
                           residual=arr("residual"), equilibrium=bool(d["equilibrium"]),
                           tolerance=float(d["tolerance"]), y=arr("y"), lam=arr("lam"),
-                          notes=tuple(d.get("notes", ())))
+                          notes=tuple(d.get("notes", ())),
+                          lam_names=tuple(d.get("lam_names", ())))

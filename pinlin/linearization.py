@@ -8,8 +8,16 @@ import numpy as np
 import pinocchio as pin
 
 from .derivatives import BACKENDS
-from .exceptions import PinlinError, SceneError, ShapeError
-from .formulations import FORMULATIONS, linearize_independent
+from .equilibrium import require_equilibrium_support, solve_constrained
+from .exceptions import PinlinError, ShapeError
+from .formulations import (
+    FORMULATIONS,
+    linearize_canonical,
+    linearize_independent,
+    linearize_penalty,
+    linearize_reduced,
+)
+from .formulations.constrained import penalty_parameters
 from .linear_model import LinearModel
 from .operating_point import OperatingPoint, configuration, hold_at_rest
 from .scene import Scene
@@ -48,18 +56,25 @@ def _configuration(system: System, q: np.ndarray | None) -> np.ndarray:
 
 def linearize(scene: Scene | System | str | Path, *, formulation: str = "independent",
               derivatives: str = "analytic", step: float | None = None,
-              q: np.ndarray | None = None, allow_non_equilibrium: bool | None = None
-              ) -> LinearModel:
+              q: np.ndarray | None = None, allow_non_equilibrium: bool | None = None,
+              basis: str = "partitioned", alpha: float | None = None, mu: float | None = None,
+              omega: float | None = None) -> LinearModel:
     """Linear state-space model of a scene about its operating point.
 
     Args:
         scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
             robot name. A scene caches its system, so repeated calls skip the model loading.
-        formulation: ``"independent"`` (chapter 9.1.1).
+        formulation: ``"independent"`` (chapter 9.1.1), ``"penalty"`` (9.1.2, dependent
+            coordinates) or ``"canonical"`` (9.1.3, momenta and dependent coordinates).
         derivatives: ``"analytic"`` (Pinocchio), ``"fd3"`` or ``"fd5"`` (chapter 9.2).
         step: Finite-difference step for ``fd3``/``fd5`` [rad, m, rad/s, m/s].
         q: Full configuration (size nq) replacing the scene's operating point.
         allow_non_equilibrium: Override the scene's ``operating_point.allow_non_equilibrium``.
+        basis: Independent coordinates of a constrained system: ``"partitioned"`` (the
+            independent joints z) or ``"orthonormal"`` (an orthonormal nullspace basis of Phi_q).
+        alpha, mu, omega: Penalty factor [kg (or kg*m^2) per constraint unit^2], damping ratio
+            [-] and natural frequency [rad/s] of the constraint violation (penalty, canonical);
+            defaults 1e7, 1.0, 10.0.
 
     Returns:
         The model, with x = [dq; v] (names ``q:<coordinate>``, ``v:<coordinate>``), inputs
@@ -74,16 +89,25 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
     if derivatives not in BACKENDS:
         raise PinlinError(f"unknown derivatives '{derivatives}'; expected one of "
                           f"{', '.join(BACKENDS)}")
-    if system.scene.operating_point.solve != "inputs":
-        raise SceneError(system.scene.source, "operating_point.solve",
-                         f"'{system.scene.operating_point.solve}' is not supported for this scene")
-    if formulation != "independent":
-        raise PinlinError(f"formulation '{formulation}' needs closed loops, which this version "
-                          "does not support yet; use 'independent'")
+    if alpha is not None or mu is not None or omega is not None:
+        penalty_parameters(alpha, mu, omega)  # bad values are errors whatever the formulation
+        if formulation == "independent":
+            raise PinlinError("alpha, mu and omega set the penalty and canonical formulations; "
+                              "the independent formulation has no penalty")
     q0 = _configuration(system, q)
-    Minv = system.mass_inverse(q0)  # shared by the operating point and the model
     if allow_non_equilibrium is None:
         allow_non_equilibrium = system.scene.operating_point.allow_non_equilibrium
+    if (system.constraints or formulation != "independent"
+            or system.scene.operating_point.solve != "inputs"):
+        require_equilibrium_support(system)
+        op, cp = solve_constrained(system, q0, allow_non_equilibrium=allow_non_equilibrium)
+        if formulation == "independent":
+            return linearize_reduced(system, op, cp, derivatives=derivatives, step=step,
+                                     basis=basis)
+        build = linearize_penalty if formulation == "penalty" else linearize_canonical
+        return build(system, op, cp, derivatives=derivatives, step=step, alpha=alpha, mu=mu,
+                     omega=omega)
+    Minv = system.mass_inverse(q0)  # shared by the operating point and the model
     op = hold_at_rest(system, q0, allow_non_equilibrium=allow_non_equilibrium, mass_inverse=Minv)
     return linearize_independent(system, op, derivatives=derivatives, step=step,
                                  mass_inverse=Minv)

@@ -144,8 +144,26 @@ class ModalAnalysis:
                 skip.add(i + 1)
         return keep
 
+    @functools.cached_property
+    def constraint(self) -> np.ndarray:
+        """Mask of constraint modes of a dependent-coordinate model (penalty, canonical): the
+        2m eigenvalues whose position vectors lie most in the range of Phi_q^T (m constraint
+        rows), measured by |G v_q| / (|G| |v_q|); physical modes have |G v_q| = O(1/alpha)."""
+        G = self.model.G
+        out = np.zeros(len(self.eigenvalues), dtype=bool)
+        if G is None or G.shape[0] == 0:
+            return out
+        rows = [k for k, s in enumerate(self.model.state_names) if s.startswith("q:")]
+        vq = self.right_vectors[rows]
+        ratio = np.linalg.norm(G @ vq, axis=0) / (
+            np.linalg.norm(G, 2) * np.maximum(np.linalg.norm(vq, axis=0), np.finfo(float).tiny))
+        out[np.argsort(-ratio, kind="stable")[:2 * G.shape[0]]] = True
+        return out
+
     def kind(self, index: int) -> str:
         lam = self.eigenvalues[index]
+        if self.constraint[index]:
+            return "constraint"
         if self.rigid[index]:
             return "rigid"
         if lam.real > self.rigid_tol:
@@ -299,7 +317,14 @@ def _general(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     rigid = np.abs(lam) <= tol
     lam = np.where(rigid, 0.0, lam)
     wn, zeta = _frequencies(lam, rigid)
-    n = model.n_states // 2 if model.has_second_order else model.n_states
-    shapes = _normalize_shapes(vr[:n])
-    return ModalAnalysis(lam, shapes, _coordinate_names(model, n), wn, zeta, rigid, tol,
-                         "general", model, _right=vr, _left=vl)
+    if model.has_second_order:
+        rows = np.arange(model.n_states // 2)
+    elif model.G is not None:  # canonical (p, q): shapes in q
+        rows = np.array([k for k, s in enumerate(model.state_names) if s.startswith("q:")])
+    else:
+        rows = np.arange(model.n_states)
+    shapes = _normalize_shapes(vr[rows])
+    names = tuple(model.state_names[k] for k in rows)
+    names = tuple(s[2:] if s.startswith("q:") else s for s in names)
+    return ModalAnalysis(lam, shapes, names, wn, zeta, rigid, tol, "general", model,
+                         _right=vr, _left=vl)

@@ -34,7 +34,10 @@ class OperatingPoint:
         equilibrium: Whether the residual is zero within ``tolerance``.
         tolerance: Residual tolerance used [N*m or N].
         y: Output values at the point (frame positions [m], joint values).
-        lam: Constraint forces (closed loops); None for open chains.
+        lam: Constraint forces per constraint row (loops: force [N] and torque [N*m] applied to
+            frame1's body in the world frame; mimic: generalized force [N*m or N]); zero on
+            dropped redundant rows; None without constraints.
+        lam_names: Names of the constraint rows, matching ``lam``.
         notes: Human-readable remarks (e.g. an opted-in non-equilibrium).
     """
 
@@ -48,11 +51,12 @@ class OperatingPoint:
     y: np.ndarray | None = None
     lam: np.ndarray | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    lam_names: tuple[str, ...] = ()
 
     def with_outputs(self, y: np.ndarray) -> OperatingPoint:
         """The same point with output values ``y``."""
         return OperatingPoint(self.q, self.v, self.u, self.a, self.residual, self.equilibrium,
-                              self.tolerance, y, self.lam, self.notes)
+                              self.tolerance, y, self.lam, self.notes, self.lam_names)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain-Python form (lists) for JSON export."""
@@ -60,7 +64,8 @@ class OperatingPoint:
         for key in ("q", "v", "u", "a", "residual", "y", "lam"):
             val = getattr(self, key)
             out[key] = None if val is None else np.asarray(val).tolist()
-        out.update(equilibrium=self.equilibrium, tolerance=self.tolerance, notes=list(self.notes))
+        out.update(equilibrium=self.equilibrium, tolerance=self.tolerance, notes=list(self.notes),
+                   lam_names=list(self.lam_names))
         return out
 
 

@@ -89,5 +89,6 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     return LinearModel.assembled(
         A=read_only(A), B=read_only(B), C=read_only(C), D=read_only(D),
         state_names=system.state_names, input_names=system.input_names, output_names=out_names,
-        E=None, F=None, M=read_only(terms.M), C_damp=read_only(C_damp), K=read_only(terms.K),
-        Bu=system.input_matrix, operating_point=op_with_y, name=system.scene.name, info=info)
+        E=None, F=None, G=None, M=read_only(terms.M), C_damp=read_only(C_damp),
+        K=read_only(terms.K), Bu=system.input_matrix, operating_point=op_with_y,
+        name=system.scene.name, info=info)

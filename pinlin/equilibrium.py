@@ -1,0 +1,183 @@
+"""Operating points of constrained systems (loops, mimic couplings) and passive equilibria.
+
+At rest the residual form of the equations of motion is::
+
+    H(q) = f(q) - tau_spring(q) - S u - Phi_q^T lam = 0,    Phi(q) = 0
+
+with f the generalized force at rest (gravity; centrifugal in a rotating scene) and lam the
+constraint forces (the force [N] and torque [N*m] the closure applies to frame1's body, world
+frame). ``solve = "inputs"`` assembles q0 with the independent coordinates z held and solves
+[S, Phi_q^T] [u0; lam] = f - tau_spring in the least-squares sense; what remains is the residual.
+``solve = "positions"`` holds the inputs and finds q0 by Newton on the reduced residual
+R^T (f - tau_spring - S u) over z, whose Jacobian is the reduced stiffness
+R^T (K - lam^T Phi_qq) R of the linear model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from .assembly import Partition, assemble, partition, projection
+from .exceptions import EquilibriumError, ModelError, SceneError
+from .operating_point import OperatingPoint, residual_tolerance
+
+
+@dataclass(frozen=True)
+class ConstrainedPoint:
+    """What the formulations need besides the operating point.
+
+    Attributes:
+        partition: Independent rows and coordinates at q0.
+        jacobian: The independent rows of Phi_q at q0 (m x nv).
+    """
+
+    partition: Partition
+    jacobian: np.ndarray
+
+
+def input_vector(system, values) -> np.ndarray:
+    """Inputs u (size nu) from a {joint: value} table, zeros elsewhere [N*m or N]."""
+    u = np.zeros(len(system.actuated))
+    where = {int(i): k for k, i in enumerate(system.actuated)}
+    for name, value in values.items():
+        j = system.joint(name, f"operating_point.u.{name}")
+        vals = np.atleast_1d(np.asarray(value, dtype=float))
+        if vals.size != j.nv:
+            raise SceneError(system.scene.source, f"operating_point.u.{name}",
+                             f"joint '{name}' has {j.nv} inputs, got {vals.size}")
+        for k in range(j.nv):
+            if j.idx_v + k not in where:
+                raise SceneError(system.scene.source, f"operating_point.u.{name}",
+                                 f"joint '{name}' is not actuated (see inputs.actuated)")
+            u[where[j.idx_v + k]] = vals[k]
+    return u
+
+
+def static_stiffness(system, q: np.ndarray, lam: np.ndarray | None) -> np.ndarray:
+    """dH/d(dq) at rest: K of the open tree plus springs, minus lam^T Phi_qq (analytic)."""
+    z = np.zeros(system.nv)
+    K, _, _ = system.rnea_derivatives(q, z, z)
+    K.flat[::system.nv + 1] += system.stiffness
+    if lam is not None and system.constraints:
+        K -= system.constraints.hessian(q, lam)
+    return K
+
+
+def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: bool = False
+                      ) -> tuple[OperatingPoint, ConstrainedPoint]:
+    """Operating point of a scene with constraints and/or ``solve = "positions"``."""
+    spec = system.scene.operating_point
+    cons = system.constraints
+    notes: list[str] = []
+    part = partition(system, q_guess)
+    q0 = assemble(system, q_guess, part.independent) if cons else q_guess
+    if spec.solve == "positions":
+        u0 = input_vector(system, spec.u)
+        q0, part = _passive_equilibrium(system, q0, part, u0)
+    jac = cons.jacobian(q0)
+    part = partition(system, q0, jac)
+    G = jac[part.rows]
+    f = system.static_force(q0)
+    if system.has_springs:
+        f -= system.spring_torque(q0)
+    S = system.input_matrix
+    if spec.solve == "positions":
+        u0 = input_vector(system, spec.u)
+        lam_k = np.linalg.lstsq(G.T, f - S @ u0, rcond=None)[0] if len(part.rows) else \
+            np.zeros(0)
+    else:
+        sol, *_ = np.linalg.lstsq(np.hstack([S, G.T]), f, rcond=None)
+        u0, lam_k = sol[:S.shape[1]], sol[S.shape[1]:]
+        if np.linalg.matrix_rank(np.hstack([S, G.T])) < S.shape[1] + len(part.rows):
+            notes.append("the inputs and constraint forces that hold q0 are not unique "
+                         "(redundant actuation): the least-norm ones are reported")
+    residual = f - S @ u0 - G.T @ lam_k
+    lam = np.zeros(cons.size)
+    lam[part.rows] = lam_k
+    tol = residual_tolerance(float(np.abs(f).max(initial=0.0)))
+    worst = int(np.argmax(np.abs(residual))) if residual.size else 0
+    equilibrium = bool(residual.size == 0 or abs(residual[worst]) <= tol)
+    if not equilibrium:
+        name = system.coordinate_names[worst]
+        if cons or not allow_non_equilibrium:
+            extra = (" (with loops a non-equilibrium cannot be linearized)" if cons and
+                     allow_non_equilibrium else "; actuate it, change q0, or set "
+                     "operating_point.allow_non_equilibrium = true")
+            raise EquilibriumError(
+                f"scene '{system.scene.name}': q0 is not an equilibrium: a generalized force "
+                f"of {residual[worst]:.6g} N or N*m along '{name}' is left over (tolerance "
+                f"{tol:.1e}){extra}", residual, system.coordinate_names)
+    if cons:
+        zn = ", ".join(system.coordinate_names[i] for i in part.independent)
+        notes.append(f"independent coordinates{' (chosen by pinlin)' if part.chosen else ''}: "
+                     f"{zn}")
+        if part.dropped:
+            notes.append(f"redundant constraint rows dropped: {', '.join(part.dropped)}")
+        if part.condition > 1e6:
+            notes.append(f"near a singular position: the dependent-coordinate Jacobian has "
+                         f"condition {part.condition:.3g}")
+    a0 = np.zeros(system.nv)
+    if not equilibrium:  # open chain, opted in
+        a0 = -(system.mass_inverse(q0) @ residual)
+        notes.append(f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
+                     f"'{system.coordinate_names[worst]}'")
+    op = OperatingPoint(q=q0, v=np.zeros(system.nv), u=u0, a=a0, residual=residual,
+                        equilibrium=equilibrium, tolerance=tol,
+                        lam=lam if cons else None, notes=tuple(notes),
+                        lam_names=cons.row_names)
+    return op, ConstrainedPoint(part, G)
+
+
+def _passive_equilibrium(system, q: np.ndarray, part: Partition, u0: np.ndarray,
+                         max_iter: int = 60) -> tuple[np.ndarray, Partition]:
+    """Newton over z on the reduced static residual, re-assembling after every step."""
+    cons = system.constraints
+    S = system.input_matrix
+
+    def reduced(qc: np.ndarray) -> tuple[np.ndarray, np.ndarray, Partition, np.ndarray]:
+        jac = cons.jacobian(qc)
+        pc = partition(system, qc, jac)
+        G = jac[pc.rows]
+        f = system.static_force(qc) - S @ u0
+        if system.has_springs:
+            f -= system.spring_torque(qc)
+        lam = np.zeros(cons.size)
+        if len(pc.rows):
+            lam[pc.rows] = np.linalg.lstsq(G.T, f, rcond=None)[0]
+        R = projection(G, pc)
+        return R.T @ f, R, pc, lam
+
+    rz, R, part, lam = reduced(q)
+    scale = max(1.0, float(np.abs(system.static_force(q)).max(initial=0.0)))
+    for _ in range(max_iter):
+        if np.abs(rz).max(initial=0.0) <= 1e-11 * scale:
+            return q, part
+        Kz = R.T @ static_stiffness(system, q, lam) @ R
+        step = np.linalg.lstsq(Kz, -rz, rcond=None)[0]
+        for damp in (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125):
+            trial = pin.integrate(system.model, q, damp * (R @ step))
+            if cons:
+                trial = assemble(system, trial, part.independent)
+            rz_t, R_t, part_t, lam_t = reduced(trial)
+            if np.abs(rz_t).max(initial=0.0) < np.abs(rz).max(initial=0.0):
+                q, rz, R, part, lam = trial, rz_t, R_t, part_t, lam_t
+                break
+        else:
+            break
+    if np.abs(rz).max(initial=0.0) <= 1e-8 * scale:
+        return q, part
+    worst = int(np.argmax(np.abs(rz)))
+    raise EquilibriumError(f"scene '{system.scene.name}': no passive equilibrium found from the "
+                           f"given q (reduced residual {rz[worst]:.3g} N or N*m on independent "
+                           f"coordinate '{system.coordinate_names[part.independent[worst]]}'); "
+                           "try another starting q", rz, ())
+
+
+def require_equilibrium_support(system) -> None:
+    """Refuse what this module cannot do."""
+    if system.constraints and system.base_joint is not None:
+        raise ModelError(f"scene '{system.scene.name}': loops on a floating-base robot are not "
+                         "supported by this version of pinlin")

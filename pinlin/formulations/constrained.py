@@ -1,0 +1,195 @@
+"""The three formulations of chapter 9.1 for systems with constraints Phi(q) = 0.
+
+All start from the second-order terms of H at the operating point (see ``derivatives``): M, C,
+K (K includes the geometric stiffness -lam^T Phi_qq of the constraint forces) and the
+independent constraint rows G = Phi_q.
+
+- **Independent coordinates (9.1.1).** q' = R z' with G R = 0. At a static or steady (relative)
+  equilibrium, z' = z'' = 0, so every term of eqs. 9.8-9.11 that carries z' or z'' vanishes and
+  the R_z terms reduce to R_z^T (Q - M Sc) = R_z^T G^T lam, which equals -R^T (lam^T Phi_qq) R
+  (differentiate G R = 0): the geometric stiffness. Hence
+
+      M_z = R^T M R,   C_z = R^T C R,   K_z = R^T K R,   Bu_z = R^T S.
+
+- **Penalty (9.1.2)**, eqs. 9.35-9.37 at the operating point (Phi = Phi' = 0; the penalty
+  force alpha Omega^2 Phi of the loaded equilibrium is lam, which brings lam^T Phi_qq into K):
+
+      M_p = M + G^T a G,   C_p = C + G^T a 2 mu Omega G,   K_p = K + G^T a Omega^2 G.
+
+- **Canonical (9.1.3)**, eq. 9.53 with p = M_p q': E y' = F y + G_u u for y = [p; q] with
+  E = [[I, C_p], [0, M_p]], F = [[0, -K_p], [I, 0]].
+
+First-order models follow Rowell: x = [dz; z'] (independent), [dq; v] (penalty), [p; q]
+(canonical).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..assembly import projection
+from ..derivatives import DEFAULT_STEPS, second_order_terms
+from ..equilibrium import ConstrainedPoint
+from ..exceptions import PinlinError
+from ..linear_model import LinearModel
+from ..operating_point import OperatingPoint
+from .independent import output_matrices
+
+#: Default penalty parameters: alpha [kg or kg*m^2 per row unit^2], Omega [rad/s], mu [-].
+PENALTY_DEFAULTS = {"alpha": 1e7, "omega": 10.0, "mu": 1.0}
+BASES = ("partitioned", "orthonormal")
+
+
+def first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, Bu: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """A = [[0, I], [-M^-1 K, -M^-1 C]], B = [[0], [M^-1 Bu]] with one Cholesky factor of M."""
+    n = M.shape[0]
+    try:
+        factor = sla.cho_factor(M)
+    except np.linalg.LinAlgError:
+        raise PinlinError("the (reduced) mass matrix is not positive definite: some coordinate "
+                          "moves no inertia") from None
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:] = -sla.cho_solve(factor, np.hstack([K, C]))
+    B = np.zeros((2 * n, Bu.shape[1]))
+    B[n:] = sla.cho_solve(factor, Bu)
+    return A, B
+
+
+def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, backend: str,
+          step: float | None, **extra) -> dict:
+    info = {
+        "formulation": formulation,
+        "derivatives": backend,
+        "effects": system.scene.effects.in_play() + (["loops"] if system.scene.loops else []),
+        "velocity_terms": True,
+        "base": "free" if system.base_joint else "fixed",
+        "notes": list(op.notes),
+        "independent": [system.coordinate_names[i] for i in cp.partition.independent],
+        "constraint_rows": [system.constraints.row_names[i] for i in cp.partition.rows],
+        "dropped_rows": list(cp.partition.dropped),
+        "constraint_condition": cp.partition.condition,
+    }
+    if backend != "analytic":
+        info["step"] = step if step is not None else DEFAULT_STEPS[backend]
+    info.update(extra)
+    return info
+
+
+def _terms(system, op, derivatives, step):
+    terms = second_order_terms(system, op, derivatives, step)
+    C = terms.C if terms.C is not None else np.zeros_like(terms.M)
+    return terms, C
+
+
+def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
+                      derivatives: str = "analytic", step: float | None = None,
+                      basis: str = "partitioned") -> LinearModel:
+    """Independent-coordinate model (9.1.1) of a constrained system."""
+    if basis not in BASES:
+        raise PinlinError(f"unknown basis '{basis}'; expected one of {', '.join(BASES)}")
+    terms, C = _terms(system, op, derivatives, step)
+    R = projection(cp.jacobian, cp.partition, basis)
+    Mz, Cz, Kz = R.T @ terms.M @ R, R.T @ C @ R, R.T @ terms.K @ R
+    Mz = 0.5 * (Mz + Mz.T)
+    Bz = R.T @ system.input_matrix
+    A, B = first_order(Mz, Cz, Kz, Bz)
+    if basis == "partitioned":
+        coords = [system.coordinate_names[i] for i in cp.partition.independent]
+    else:
+        coords = [f"z[{i}]" for i in range(R.shape[1])]
+    states = tuple([f"q:{c}" for c in coords] + [f"v:{c}" for c in coords])
+    Cout, D, out_names, y0 = output_matrices(system, op)
+    nv = system.nv
+    if system.outputs is None:
+        Cout, out_names = np.eye(2 * R.shape[1]), states
+        y0 = np.zeros(2 * R.shape[1])
+    else:
+        Cout = np.hstack([Cout[:, :nv] @ R, Cout[:, nv:] @ R])
+    info = _info(system, op, cp, "independent", terms.backend, step, basis=basis,
+                 velocity_terms=bool(np.any(Cz)), R=R.tolist())
+    return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], B.shape[1])),
+                       state_names=states, input_names=system.input_names,
+                       output_names=out_names, M=Mz, C_damp=Cz, K=Kz, Bu=Bz,
+                       operating_point=op.with_outputs(y0), name=system.scene.name, info=info)
+
+
+def penalty_parameters(alpha: float | None, mu: float | None, omega: float | None
+                       ) -> tuple[float, float, float]:
+    """Checked (alpha, mu, Omega) with the defaults filled in."""
+    out = []
+    for key, value in (("alpha", alpha), ("mu", mu), ("omega", omega)):
+        v = PENALTY_DEFAULTS[key] if value is None else value
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise PinlinError(f"penalty {key} must be a number, got {value!r}") from None
+        if not (np.isfinite(v) and v > 0):
+            raise PinlinError(f"penalty {key} must be a finite number > 0, got {value!r}")
+        out.append(v)
+    return out[0], out[1], out[2]
+
+
+def penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega):
+    """(M_p, C_p, K_p, terms) of eqs. 9.35-9.37 at the operating point."""
+    terms, C = _terms(system, op, derivatives, step)
+    G = cp.jacobian
+    GtG = G.T @ G
+    Mp = terms.M + alpha * GtG
+    Cp = C + (2.0 * alpha * mu * omega) * GtG
+    Kp = terms.K + (alpha * omega**2) * GtG
+    return 0.5 * (Mp + Mp.T), Cp, Kp, terms
+
+
+def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
+                      derivatives: str = "analytic", step: float | None = None,
+                      alpha: float | None = None, mu: float | None = None,
+                      omega: float | None = None) -> LinearModel:
+    """Dependent-coordinate model with the penalty formulation (9.1.2)."""
+    alpha, mu, omega = penalty_parameters(alpha, mu, omega)
+    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega)
+    S = system.input_matrix
+    A, B = first_order(Mp, Cp, Kp, S)
+    Cout, D, out_names, y0 = output_matrices(system, op)
+    info = _info(system, op, cp, "penalty", terms.backend, step, alpha=alpha, mu=mu,
+                 omega=omega)
+    return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
+                       input_names=system.input_names, output_names=out_names, M=Mp,
+                       C_damp=Cp, K=Kp, Bu=S, G=cp.jacobian, operating_point=op.with_outputs(y0),
+                       name=system.scene.name, info=info)
+
+
+def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
+                        derivatives: str = "analytic", step: float | None = None,
+                        alpha: float | None = None, mu: float | None = None,
+                        omega: float | None = None) -> LinearModel:
+    """Canonical (momentum) model (9.1.3): state y = [p; q], eq. 9.53 solved for y'."""
+    alpha, mu, omega = penalty_parameters(alpha, mu, omega)
+    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega)
+    n = system.nv
+    S = system.input_matrix
+    E = np.block([[np.eye(n), Cp], [np.zeros((n, n)), Mp]])
+    F = np.block([[np.zeros((n, n)), -Kp], [np.eye(n), np.zeros((n, n))]])
+    Gu = np.vstack([S, np.zeros_like(S)])
+    lu = sla.lu_factor(E)
+    A, B = sla.lu_solve(lu, F), sla.lu_solve(lu, Gu)
+    Cfull, D, out_names, y0 = output_matrices(system, op)
+    # Outputs read dq and v; in (p, q): dq = q, v = M_p^-1 p.
+    Cout = np.hstack([Cfull[:, n:] @ np.linalg.inv(Mp), Cfull[:, :n]])
+    coords = system.coordinate_names
+    states = tuple([f"p:{c}" for c in coords] + [f"q:{c}" for c in coords])
+    if system.outputs is None:
+        Cout, out_names, y0 = np.eye(2 * n), states, np.zeros(2 * n)
+    info = _info(system, op, cp, "canonical", terms.backend, step, alpha=alpha, mu=mu,
+                 omega=omega)
+    return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
+                       state_names=states, input_names=system.input_names,
+                       output_names=out_names, G=cp.jacobian,
+                       operating_point=op.with_outputs(y0),
+                       name=system.scene.name, info=info)
+
+
+__all__ = ["BASES", "PENALTY_DEFAULTS", "first_order", "linearize_canonical", "linearize_penalty",
+           "linearize_reduced", "penalty_parameters"]
