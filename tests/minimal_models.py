@@ -117,9 +117,10 @@ def linear_model(bodies: list[Body], spring_energy: HD) -> tuple[float, float, f
     return m, V.b, V.d
 
 
-def four_bar(theta: float, branch: float = 1.0) -> tuple[float, float, float]:
+def four_bar(theta: float, branch: float = -1.0) -> tuple[float, float, float]:
     """urdf/four_bar: a=0.2, b=0.5, c=0.4, d=0.45 m; 0.4, 1.0, 0.8 kg; crank spring 2 N m/rad
-    about rest 1 rad. Angles counter-clockwise from +x in the x-z plane."""
+    about rest 1 rad. Angles counter-clockwise from +x in the x-z plane; branch -1: the rocker
+    angle is atan2(O4B) - acos(...), the assembly the bundled scene starts near."""
     a, b, c, d = 0.2, 0.5, 0.4, 0.45
     ma, mb, mc = 0.4, 1.0, 0.8
     t = HD.variable(theta)

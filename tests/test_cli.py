@@ -48,6 +48,10 @@ def test_console_script_runs():
 
 
 GOOD_URDF = {"robot__urdf": PENDULUM}
+FOUR_BAR = (URDF_DIR / "four_bar.toml").read_text().replace("four_bar.urdf", "robot.urdf")
+FOUR_BAR_URDF = {"robot__urdf": (URDF_DIR / "four_bar.urdf").read_text()}
+SECOND_LOOP = ('\n[[loops]]\nname = "again"\ntype = "point"\nframe1 = "rocker_tip"\n'
+               'frame2 = "coupler_tip"\n')
 
 BAD_SCENES = {
     "missing_urdf": ('urdf = "missing.urdf"\n', {}, "missing.urdf: file not found"),
@@ -94,6 +98,27 @@ BAD_SCENES = {
                             'quaternion = [0.0, 0.0, 0.0, 2.0] } }\n', {}, "unit quaternion"),
     "not_equilibrium": ('robot = "solo12"\n[effects]\ngravity = true\n', {},
                         "is not an equilibrium"),
+    "loop_unknown_frame": (FOUR_BAR.replace('frame2 = "rocker_tip"', 'frame2 = "rocker_tpi"'),
+                           FOUR_BAR_URDF, "'rocker_tpi' is not a frame of the robot"),
+    "loop_cannot_close": (FOUR_BAR.replace('independent = ["crank"]', 'independent = ["rocker"]')
+                          .replace("rocker = 1.6 }", "rocker = 0.0 }"), FOUR_BAR_URDF,
+                          "the loops do not close from the given q"),
+    "loop_adds_nothing": (FOUR_BAR + SECOND_LOOP, FOUR_BAR_URDF,
+                          "loop 'again' adds no independent constraint"),
+    "loop_same_body": (FOUR_BAR.replace('frame2 = "rocker_tip"', 'frame2 = "coupler_link"'),
+                       FOUR_BAR_URDF, "are on the same body"),
+    "independent_wrong_size": (FOUR_BAR.replace('independent = ["crank"]',
+                                                'independent = ["crank", "rocker"]'),
+                               FOUR_BAR_URDF, "expected 1 coordinates"),
+    "loop_bad_type": (FOUR_BAR.replace('type = "point"', 'type = "hinge"'), FOUR_BAR_URDF,
+                      "field 'loops[0].type': expected one of 'point', 'weld'"),
+    "rotation_off_axis": ('urdf = "robot.urdf"\n[effects]\ngravity = [0.0, 0.0, -9.81]\n'
+                          'rotation = { axis = [1.0, 0.0, 0.0], rate = 2.0 }\n', GOOD_URDF,
+                          "a steady rotation needs gravity along the rotation axis"),
+    "mimic_without_tags": ('urdf = "robot.urdf"\n[effects]\nmimic = true\n', GOOD_URDF,
+                           "has no <mimic> joints"),
+    "u_with_solve_inputs": ('urdf = "robot.urdf"\n[operating_point]\nu = { hinge = 1.0 }\n',
+                            GOOD_URDF, "inputs are given only with solve"),
     "massless_joint": ('urdf = "robot.urdf"\n',
                        {"robot__urdf": PENDULUM.replace('value="1.0"', 'value="0.0"')},
                        "carries no inertia"),
@@ -123,6 +148,12 @@ BAD_ARGS = {
                  "step must be a positive number"),
     "unknown_option": (["linearize", "pendulum", "--fast"], "unrecognized arguments"),
     "no_command": ([], "required"),
+    "alpha_not_positive": (["linearize", "four_bar", "--formulation", "penalty", "--alpha", "0"],
+                           "penalty alpha must be a finite number > 0"),
+    "alpha_for_independent": (["linearize", "four_bar", "--alpha", "1e5"],
+                              "the independent formulation has no penalty"),
+    "bad_formulation": (["linearize", "four_bar", "--formulation", "lagrange"],
+                        "invalid choice"),
 }
 
 

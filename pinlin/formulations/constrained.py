@@ -58,6 +58,58 @@ def first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, Bu: np.ndarray
     return A, B
 
 
+def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarray,
+                        Bu: np.ndarray, alpha: float, mu: float, omega: float
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """A, B of the penalty model without forming M + G^T alpha G.
+
+    Plain assembly solves with M_p = M + alpha G^T G, whose condition number grows like alpha:
+    float64 loses the physical eigenvalues' accuracy near alpha = 1e7-1e8 and can invent a
+    positive real part. Here the coordinates are rotated by the orthogonal Q = [Z, N] from the
+    SVD G = U S N^T (Z spans the nullspace of G): G Q = [0, U S] exactly, so the penalty terms
+    live only in the constrained block eta as alpha S^2, 2 mu Omega alpha S^2 and
+    alpha Omega^2 S^2 (diagonal). M_p^-1 [K_p, C_p, Bu] is then formed by block elimination:
+    D = M_eta,eta + alpha S^2 is inverted only against right-hand sides of its own size
+    (D^-1 alpha Omega^2 S^2 -> Omega^2, no cancellation), and the free block through the Schur
+    complement M_zz - M_z,eta D^-1 M_eta,z, which tends to R^T M R as alpha grows. Every
+    quantity stays O(1) in alpha, so the physical eigenvalues keep their O(1/alpha) penalty
+    error down to rounding, up to alpha = 1e14 and beyond. The same model as plain assembly in
+    exact arithmetic; A and B are returned in the original coordinates.
+    """
+    n, m = M.shape[0], G.shape[0]
+    if m == 0:
+        return first_order(M, C, K, Bu)
+    _, sv, vt = np.linalg.svd(G)
+    Q = np.hstack([vt[m:].T, vt[:m].T])  # [Z, N]
+    f = n - m
+    w = sv[:m] ** 2
+    Mt, Ct, Kt, Bt = Q.T @ M @ Q, Q.T @ C @ Q, Q.T @ K @ Q, Q.T @ Bu
+    Mt = 0.5 * (Mt + Mt.T)
+    eta = np.arange(f, n)
+    Ct[eta, eta] += 2.0 * alpha * mu * omega * w
+    Kt[eta, eta] += alpha * omega**2 * w
+    D = Mt[f:, f:].copy()
+    D[np.arange(m), np.arange(m)] += alpha * w
+    rhs = np.hstack([Kt, Ct, Bt])
+    Dfac = sla.cho_factor(D)
+    DinvM = sla.cho_solve(Dfac, Mt[f:, :f])         # D^-1 M_eta,z
+    Dinv_rhs = sla.cho_solve(Dfac, rhs[f:])          # D^-1 Y_eta
+    X = np.zeros_like(rhs)
+    if f:
+        schur = Mt[:f, :f] - Mt[:f, f:] @ DinvM
+        X[:f] = sla.solve(0.5 * (schur + schur.T), rhs[:f] - Mt[:f, f:] @ Dinv_rhs,
+                          assume_a="pos")
+    X[f:] = Dinv_rhs - DinvM @ X[:f]
+    XK, XC, XB = X[:, :n], X[:, n:2 * n], X[:, 2 * n:]
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -(Q @ XK @ Q.T)
+    A[n:, n:] = -(Q @ XC @ Q.T)
+    B = np.zeros((2 * n, Bu.shape[1]))
+    B[n:] = Q @ XB
+    return A, B
+
+
 def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, backend: str,
           step: float | None, **extra) -> dict:
     info = {
@@ -151,7 +203,8 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     alpha, mu, omega = penalty_parameters(alpha, mu, omega)
     Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega)
     S = system.input_matrix
-    A, B = first_order(Mp, Cp, Kp, S)
+    C = terms.C if terms.C is not None else np.zeros_like(terms.M)
+    A, B = penalty_first_order(terms.M, C, terms.K, cp.jacobian, S, alpha, mu, omega)
     Cout, D, out_names, y0 = output_matrices(system, op)
     info = _info(system, op, cp, "penalty", terms.backend, step, alpha=alpha, mu=mu,
                  omega=omega)
