@@ -412,3 +412,40 @@ def test_panda_fingers_mimic():
     model = pinlin.linearize(scene)
     assert model.n_states == 2 * (scene.system.nv - 1)
     assert "mimic:panda_finger_joint2" in model.operating_point.lam_names
+
+
+SPHERICAL_URDF = """<?xml version="1.0"?>
+<robot name="gimbal_pendulum">
+  <link name="base"/>
+  <link name="ring"/>
+  <link name="bob"><inertial><origin xyz="0 0 -{L}"/><mass value="{m}"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <joint name="roll" type="revolute"><parent link="base"/><child link="ring"/>
+    <axis xyz="1 0 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="pitch" type="revolute"><parent link="ring"/><child link="bob"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize("rate", [0.7, -1.3])
+def test_steady_rotation_coriolis(tmp_path, rate):
+    """A point-mass pendulum free in two directions, in a frame spinning at rate W about the
+    vertical: x'' - 2 W y' + (g/L - W^2) x = 0 and y'' + 2 W x' + (g/L - W^2) y = 0, whose
+    eigenvalues are +-i (w0 + W) and +-i (w0 - W) with w0 = sqrt(g/L) (Foucault). The gyroscopic
+    coupling is in C_damp, so the general eigensolver is used."""
+    L, m = 0.8, 1.5
+    urdf = tmp_path / "gimbal.urdf"
+    urdf.write_text(SPHERICAL_URDF.format(L=L, m=m))
+    scene = pinlin.Scene.from_urdf(urdf, effects={
+        "gravity": [0, 0, -G], "rotation": {"axis": [0, 0, 1], "rate": rate}})
+    model = pinlin.linearize(scene)
+    w0 = math.sqrt(G / L)
+    expected = np.array([w0 + rate, w0 - rate, -(w0 + rate), -(w0 - rate)])
+    modes = pinlin.modal(model)
+    assert modes.method == "general"
+    np.testing.assert_allclose(np.abs(modes.eigenvalues.real), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.sort(modes.eigenvalues.imag), np.sort(expected), rtol=1e-12)
+    C = model.C_damp
+    assert C[0, 1] == pytest.approx(-C[1, 0]) and abs(C[0, 1]) == pytest.approx(
+        2 * abs(rate) * m * L * L, rel=1e-12)
