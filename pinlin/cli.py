@@ -59,9 +59,14 @@ def _print_operating_point(model, system) -> None:
                  f"Omega = {model.info['omega']:g} rad/s")
     elif "basis" in model.info:
         extra = f", {model.info['basis']} basis"
+    steps = ""
+    if "step" in model.info:
+        steps = " (steps " + ", ".join(f"{k} {v:g}" for k, v in model.info["step"].items()) + ")"
     print(f"linear model: {model.info['formulation']} formulation, "
-          f"{model.info['derivatives']} derivatives"
-          + (f" (step {model.info['step']:g})" if "step" in model.info else "") + extra)
+          f"{model.info['derivatives']} derivatives{steps}{extra}")
+    if "error_estimate" in model.info:
+        print(f"error estimate of A (relative, truncation + rounding): "
+              f"{model.info['error_estimate']:.1e}")
     print("operating point:")
     for name, j in system.joints.items():
         values = op.q[j.idx_q:j.idx_q + j.nq]
@@ -139,7 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--formulation", choices=FORMULATIONS, default="independent")
     lin.add_argument("--derivatives", choices=BACKENDS, default="analytic")
     lin.add_argument("--step", type=float, default=None,
-                     help="finite-difference step for fd3/fd5 [rad, m, rad/s, m/s]")
+                     help="finite-difference step for fd3/fd5, all variables [rad, m, rad/s, "
+                          "m/s, N*m, N]; default: per variable, see the README")
     lin.add_argument("--basis", choices=BASES, default="partitioned",
                      help="independent coordinates of a mechanism with loops")
     lin.add_argument("--alpha", type=float, default=None,

@@ -33,7 +33,8 @@ def test_linearize_bundled_scene_prints_operating_point_and_modes(capfd, tmp_pat
 
 def test_linearize_robot_name_with_matrices(capfd):
     code, out, _ = run(capfd, "linearize", "ur5", "--matrices", "--derivatives", "fd5")
-    assert code == 0 and "A =" in out and "fd5 derivatives (step 0.0005)" in out
+    assert code == 0 and "A =" in out and "fd5 derivatives (steps q 0.001, v 0.001, u 0.001)" in out
+    assert "error estimate of A" in out
 
 
 def test_robots_lists_the_loadable_ones(capfd):

@@ -29,7 +29,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..assembly import projection
-from ..derivatives import DEFAULT_STEPS, second_order_terms
+from ..derivatives import error_estimate, second_order_terms
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import PinlinError
 from ..linear_model import LinearModel
@@ -111,7 +111,7 @@ def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarr
 
 
 def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, backend: str,
-          step: float | None, **extra) -> dict:
+          **extra) -> dict:
     info = {
         "formulation": formulation,
         "derivatives": backend,
@@ -124,30 +124,51 @@ def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, ba
         "dropped_rows": list(cp.partition.dropped),
         "constraint_condition": cp.partition.condition,
     }
-    if backend != "analytic":
-        info["step"] = step if step is not None else DEFAULT_STEPS[backend]
     info.update(extra)
     return info
 
 
-def _terms(system, op, derivatives, step):
-    terms = second_order_terms(system, op, derivatives, step)
+def _terms(system, op, derivatives, step, estimate_error=True):
+    terms = second_order_terms(system, op, derivatives, step, estimate_error)
     C = terms.C if terms.C is not None else np.zeros_like(terms.M)
     return terms, C
 
 
+def _alt(terms) -> tuple[np.ndarray, np.ndarray] | None:
+    """(K, C) of the error-estimate companion, C as a matrix."""
+    if terms.alt is None:
+        return None
+    K_alt, C_alt = terms.alt
+    return K_alt, (C_alt if C_alt is not None else np.zeros_like(terms.M))
+
+
+def _numeric_info(terms, A: np.ndarray, A_alt: np.ndarray | None) -> dict:
+    out: dict = {}
+    if terms.steps is not None:
+        out["step"] = dict(terms.steps)
+    if A_alt is not None:
+        out["error_estimate"] = error_estimate(A, A_alt, terms)
+    return out
+
+
+def _input_matrix(system, terms) -> np.ndarray:
+    return system.input_matrix if terms.Bu is None else terms.Bu
+
+
 def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
-                      derivatives: str = "analytic", step: float | None = None,
-                      basis: str = "partitioned") -> LinearModel:
+                      derivatives: str = "analytic", step=None, basis: str = "partitioned",
+                      estimate_error: bool = True) -> LinearModel:
     """Independent-coordinate model (9.1.1) of a constrained system."""
     if basis not in BASES:
         raise PinlinError(f"unknown basis '{basis}'; expected one of {', '.join(BASES)}")
-    terms, C = _terms(system, op, derivatives, step)
+    terms, C = _terms(system, op, derivatives, step, estimate_error)
     R = projection(cp.jacobian, cp.partition, basis)
     Mz, Cz, Kz = R.T @ terms.M @ R, R.T @ C @ R, R.T @ terms.K @ R
     Mz = 0.5 * (Mz + Mz.T)
-    Bz = R.T @ system.input_matrix
+    Bz = R.T @ _input_matrix(system, terms)
     A, B = first_order(Mz, Cz, Kz, Bz)
+    alt = _alt(terms)
+    A_alt = None if alt is None else first_order(Mz, R.T @ alt[1] @ R, R.T @ alt[0] @ R, Bz)[0]
     if basis == "partitioned":
         coords = [system.coordinate_names[i] for i in cp.partition.independent]
     else:
@@ -160,8 +181,9 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
         y0 = np.zeros(2 * R.shape[1])
     else:
         Cout = np.hstack([Cout[:, :nv] @ R, Cout[:, nv:] @ R])
-    info = _info(system, op, cp, "independent", terms.backend, step, basis=basis,
-                 velocity_terms=bool(np.any(Cz)), R=R.tolist())
+    info = _info(system, op, cp, "independent", terms.backend, basis=basis,
+                 velocity_terms=bool(np.any(Cz)), R=R.tolist(),
+                 **_numeric_info(terms, A, A_alt))
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], B.shape[1])),
                        state_names=states, input_names=system.input_names,
                        output_names=out_names, M=Mz, C_damp=Cz, K=Kz, Bu=Bz,
@@ -184,9 +206,9 @@ def penalty_parameters(alpha: float | None, mu: float | None, omega: float | Non
     return out[0], out[1], out[2]
 
 
-def penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega):
+def penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega, estimate_error=True):
     """(M_p, C_p, K_p, terms) of eqs. 9.35-9.37 at the operating point."""
-    terms, C = _terms(system, op, derivatives, step)
+    terms, C = _terms(system, op, derivatives, step, estimate_error)
     G = cp.jacobian
     GtG = G.T @ G
     Mp = terms.M + alpha * GtG
@@ -196,18 +218,22 @@ def penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega):
 
 
 def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
-                      derivatives: str = "analytic", step: float | None = None,
-                      alpha: float | None = None, mu: float | None = None,
-                      omega: float | None = None) -> LinearModel:
+                      derivatives: str = "analytic", step=None, alpha: float | None = None,
+                      mu: float | None = None, omega: float | None = None,
+                      estimate_error: bool = True) -> LinearModel:
     """Dependent-coordinate model with the penalty formulation (9.1.2)."""
     alpha, mu, omega = penalty_parameters(alpha, mu, omega)
-    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega)
-    S = system.input_matrix
+    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega,
+                                         estimate_error)
+    S = _input_matrix(system, terms)
     C = terms.C if terms.C is not None else np.zeros_like(terms.M)
     A, B = penalty_first_order(terms.M, C, terms.K, cp.jacobian, S, alpha, mu, omega)
+    alt = _alt(terms)
+    A_alt = None if alt is None else penalty_first_order(terms.M, alt[1], alt[0], cp.jacobian,
+                                                         S, alpha, mu, omega)[0]
     Cout, D, out_names, y0 = output_matrices(system, op)
-    info = _info(system, op, cp, "penalty", terms.backend, step, alpha=alpha, mu=mu,
-                 omega=omega)
+    info = _info(system, op, cp, "penalty", terms.backend, alpha=alpha, mu=mu,
+                 omega=omega, **_numeric_info(terms, A, A_alt))
     return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names, M=Mp,
                        C_damp=Cp, K=Kp, Bu=S, G=cp.jacobian, operating_point=op.with_outputs(y0),
@@ -215,19 +241,28 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
 
 
 def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
-                        derivatives: str = "analytic", step: float | None = None,
-                        alpha: float | None = None, mu: float | None = None,
-                        omega: float | None = None) -> LinearModel:
+                        derivatives: str = "analytic", step=None, alpha: float | None = None,
+                        mu: float | None = None, omega: float | None = None,
+                        estimate_error: bool = True) -> LinearModel:
     """Canonical (momentum) model (9.1.3): state y = [p; q], eq. 9.53 solved for y'."""
     alpha, mu, omega = penalty_parameters(alpha, mu, omega)
-    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega)
+    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega,
+                                         estimate_error)
     n = system.nv
-    S = system.input_matrix
-    E = np.block([[np.eye(n), Cp], [np.zeros((n, n)), Mp]])
-    F = np.block([[np.zeros((n, n)), -Kp], [np.eye(n), np.zeros((n, n))]])
-    Gu = np.vstack([S, np.zeros_like(S)])
-    lu = sla.lu_factor(E)
-    A, B = sla.lu_solve(lu, F), sla.lu_solve(lu, Gu)
+    S = _input_matrix(system, terms)
+    eye, Z = np.eye(n), np.zeros((n, n))
+
+    def state_matrix(Cp_: np.ndarray, Kp_: np.ndarray) -> tuple[np.ndarray, tuple]:
+        lu = sla.lu_factor(np.block([[eye, Cp_], [Z, Mp]]))
+        return sla.lu_solve(lu, np.block([[Z, -Kp_], [eye, Z]])), lu
+
+    A, lu = state_matrix(Cp, Kp)
+    B = sla.lu_solve(lu, np.vstack([S, np.zeros_like(S)]))
+    A_alt = None
+    alt = _alt(terms)
+    if alt is not None:
+        C0 = terms.C if terms.C is not None else Z
+        A_alt = state_matrix(Cp + alt[1] - C0, Kp + alt[0] - terms.K)[0]
     Cfull, D, out_names, y0 = output_matrices(system, op)
     # Outputs read dq and v; in (p, q): dq = q, v = M_p^-1 p.
     Cout = np.hstack([Cfull[:, n:] @ np.linalg.inv(Mp), Cfull[:, :n]])
@@ -235,8 +270,8 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     states = tuple([f"p:{c}" for c in coords] + [f"q:{c}" for c in coords])
     if system.outputs is None:
         Cout, out_names, y0 = np.eye(2 * n), states, np.zeros(2 * n)
-    info = _info(system, op, cp, "canonical", terms.backend, step, alpha=alpha, mu=mu,
-                 omega=omega)
+    info = _info(system, op, cp, "canonical", terms.backend, alpha=alpha, mu=mu,
+                 omega=omega, **_numeric_info(terms, A, A_alt))
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
                        state_names=states, input_names=system.input_names,
                        output_names=out_names, G=cp.jacobian,

@@ -11,11 +11,13 @@ Lie groups (d/dt of ``difference(q0, q)`` equals v at q = q0).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pinocchio as pin
 
 from ..arrays import read_only
-from ..derivatives import second_order_terms
+from ..derivatives import error_estimate, second_order_terms
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
 from ..system import System
@@ -53,14 +55,15 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
 
 
 def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
-                          step: float | None = None, mass_inverse: np.ndarray | None = None
+                          step: float | Mapping[str, float] | None = None,
+                          mass_inverse: np.ndarray | None = None, estimate_error: bool = True
                           ) -> LinearModel:
     """Linear model of an open chain about ``op`` in independent (joint) coordinates.
 
     ``mass_inverse`` is M(q0)^-1 when the caller has it already.
     """
     nv = system.nv
-    terms = second_order_terms(system, op, derivatives, step)
+    terms = second_order_terms(system, op, derivatives, step, estimate_error)
     Minv = system.mass_inverse(op.q) if mass_inverse is None else mass_inverse
     A = np.zeros((2 * nv, 2 * nv))
     A[:nv, nv:].flat[::nv + 1] = 1.0
@@ -71,7 +74,7 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         A[nv:] = -(Minv @ np.hstack([terms.K, terms.C]))
         C_damp = terms.C
     B = np.zeros((2 * nv, len(system.actuated)))
-    B[nv:] = Minv[:, system.actuated]
+    B[nv:] = Minv[:, system.actuated] if terms.Bu is None else Minv @ terms.Bu
     C, D, out_names, y0 = output_matrices(system, op)
     op_with_y = op.with_outputs(y0)
     info = {
@@ -82,10 +85,15 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         "base": "free" if system.base_joint else "fixed",
         "notes": list(op.notes),
     }
-    if step is not None or terms.backend != "analytic":
-        from ..derivatives import DEFAULT_STEPS
-
-        info["step"] = step if step is not None else DEFAULT_STEPS[terms.backend]
+    if terms.steps is not None:
+        info["step"] = dict(terms.steps)
+    if terms.alt is not None:
+        K_alt, C_alt = terms.alt
+        A_alt = A.copy()
+        A_alt[nv:, :nv] = -(Minv @ K_alt)
+        if C_alt is not None:
+            A_alt[nv:, nv:] = -(Minv @ C_alt)
+        info["error_estimate"] = error_estimate(A, A_alt, terms)
     return LinearModel.assembled(
         A=read_only(A), B=read_only(B), C=read_only(C), D=read_only(D),
         state_names=system.state_names, input_names=system.input_names, output_names=out_names,
