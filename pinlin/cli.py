@@ -1,4 +1,4 @@
-"""Command-line interface: ``pinlin linearize``, ``pinlin robots``.
+"""Command-line interface: ``pinlin linearize``, ``pinlin bench``, ``pinlin robots``.
 
 Bad input never produces a traceback: the error goes to stderr as one line and the exit status
 is 2.
@@ -131,6 +131,17 @@ def _cmd_robots(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import MECHANISMS, ROBOTS, run
+
+    systems = args.systems or list(ROBOTS + MECHANISMS)
+    command = "pinlin bench" + "".join(f" {s}" for s in args.systems)
+    if args.repeats != 5:
+        command += f" --repeats {args.repeats}"
+    run(systems, args.repeats, args.out_dir, not args.no_progress, command)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .derivatives import BACKENDS
     from .formulations import BASES, FORMULATIONS, PENALTY_DEFAULTS
@@ -162,6 +173,15 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--matrices", action="store_true", help="print A, B, C, D")
     lin.add_argument("--out", metavar="FILE", help="save the model (.npz, .mat or .json)")
     lin.set_defaults(func=_cmd_linearize)
+    ben = sub.add_parser("bench", help="measure accuracy against time (analytic, fd3, fd5, "
+                                       "MuJoCo) and write validation/reports/accuracy_vs_time.md")
+    ben.add_argument("systems", nargs="*", metavar="SYSTEM",
+                     help="robots or bundled scenes (default: six robots and two mechanisms)")
+    ben.add_argument("--repeats", type=int, default=5, help="timing repeats per point")
+    ben.add_argument("--out-dir", default="validation/reports",
+                     help="folder for accuracy_vs_time.md and its plots")
+    ben.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ben.set_defaults(func=_cmd_bench)
     rob = sub.add_parser("robots", help="list the example-robot-data robots that load")
     rob.set_defaults(func=_cmd_robots)
     return parser

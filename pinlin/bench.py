@@ -1,0 +1,329 @@
+"""``pinlin bench``: what accuracy costs in time.
+
+For each system, in one run: the analytic model, 3- and 5-point differences over a sweep of
+steps h, and MuJoCo's ``mjd_transitionFD`` forward and centered over the same sweep of its eps
+(continuous A recovered exactly from the Euler step, see :mod:`pinlin.mjcf`). Error: max |A - A_an|
+/ max |A_an| against the analytic A; the analytic model's own error is estimated as the error of
+fd5 at its best step (the bottom of its V-curve: the two agree to that level, so neither is
+further from the truth than their difference plus fd5's own error). Time: median wall time of
+one complete ``pinlin.linearize`` (operating point included; error estimate off) or one
+``continuous_state_matrix`` call (state set, ``mjd_transitionFD``, recovery).
+
+Writes ``accuracy_vs_time.md`` and one PNG per system (V-curves and a Pareto plot) into the
+output folder.
+"""
+
+from __future__ import annotations
+
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+#: Steps h (fd3, fd5) and eps (MuJoCo), half-decades from 1e-2 to 1e-9.
+STEPS = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9,
+         1e-9)
+ROBOTS = ("ur5", "panda", "kinova", "talos_arm", "solo12", "talos")
+MECHANISMS = ("four_bar", "delta")
+HUMANOID = "talos"
+
+
+@dataclass
+class Curve:
+    """Error and median time [s] per step of one method."""
+
+    method: str
+    steps: list[float] = field(default_factory=list)
+    errors: list[float] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+
+    def best(self) -> tuple[float, float, float]:
+        """(h, error, time) at the smallest error."""
+        k = int(np.argmin(self.errors))
+        return self.steps[k], self.errors[k], self.times[k]
+
+
+@dataclass
+class SystemResult:
+    name: str
+    nv: int
+    kind: str
+    analytic_time: float
+    analytic_error: float = float("nan")
+    curves: dict[str, Curve] = field(default_factory=dict)
+    note: str = ""
+    ratios: dict[str, float] = field(default_factory=dict)
+
+
+def median_time(fn: Callable[[], object], repeats: int, min_time: float = 0.02) -> float:
+    """Median of ``repeats`` timings, each averaging enough calls to last ``min_time`` [s]."""
+    fn()
+    t0 = time.perf_counter()
+    fn()
+    once = max(time.perf_counter() - t0, 1e-7)
+    calls = max(1, int(min_time / once))
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        samples.append((time.perf_counter() - t0) / calls)
+    return statistics.median(samples)
+
+
+class Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, total: int, enabled: bool = True) -> None:
+        self.total, self.done, self.enabled = total, 0, enabled
+
+    def step(self, label: str) -> None:
+        self.done += 1
+        if not self.enabled:
+            return
+        width = 30
+        filled = int(width * self.done / self.total)
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
+                         f"{label:<40.40s}")
+        sys.stderr.flush()
+        if self.done == self.total:
+            sys.stderr.write("\n")
+
+
+def _scene(name: str):
+    from .scene import Scene, bundled_scenes
+
+    if name in bundled_scenes():
+        scene = Scene.load(bundled_scenes()[name])
+        return scene, ("mechanism (loops)" if scene.loops else "bundled scene")
+    scene = Scene.from_robot(name)
+    if scene.system.base_joint is not None:
+        # A floating base under gravity is not an equilibrium: the model of the free fall at
+        # rest, with a rotated base so that frame conventions are exercised.
+        scene = Scene.from_robot(name, operating_point={
+            "allow_non_equilibrium": True,
+            "q": {scene.system.base_joint: {"position": [0.1, -0.2, 1.0],
+                                            "rpy": [0.2, -0.1, 0.5]}}})
+        return scene, "floating base"
+    return scene, "fixed base"
+
+
+def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
+    """All methods on one system."""
+    from . import mjcf
+    from .linearization import linearize
+
+    scene, kind = _scene(name)
+    system = scene.system
+    ref = linearize(scene)
+    scale = float(np.abs(ref.A).max())
+    t_an = median_time(lambda: linearize(scene), repeats)
+    result = SystemResult(name, system.nv, kind, t_an)
+
+    def error(A: np.ndarray) -> float:
+        return float(np.abs(A - ref.A).max()) / scale
+
+    for backend in ("fd3", "fd5"):
+        curve = Curve(backend)
+        for h in STEPS:
+            def run(h=h, backend=backend):
+                return linearize(scene, derivatives=backend, step=h, estimate_error=False)
+            curve.steps.append(h)
+            curve.errors.append(error(run().A))
+            curve.times.append(median_time(run, repeats))
+            progress.step(f"{name} {backend} h={h:.0e}")
+        result.curves[backend] = curve
+    result.analytic_error = result.curves["fd5"].best()[1]
+    try:
+        ms = mjcf.build(system)
+    except mjcf.MujocoError as exc:
+        result.note = str(exc)
+        for _ in range(2 * len(STEPS)):
+            progress.step(f"{name} MuJoCo: n/a")
+        return result
+    op = ref.operating_point
+    for label, centered in (("mujoco forward", False), ("mujoco centered", True)):
+        curve = Curve(label)
+        for h in STEPS:
+            def run_mj(h=h, centered=centered):
+                return mjcf.continuous_state_matrix(ms, system, op, eps=h, centered=centered)
+            curve.steps.append(h)
+            curve.errors.append(error(run_mj()))
+            curve.times.append(median_time(run_mj, repeats))
+            progress.step(f"{name} {label} eps={h:.0e}")
+        result.curves[label] = curve
+    if name == HUMANOID:
+        result.ratios = _interleaved_ratios(scene, ms, op, result, repeats)
+    return result
+
+
+def _interleaved_ratios(scene, ms, op, result: SystemResult, repeats: int) -> dict[str, float]:
+    """Time ratios to the analytic model measured round by round (each round times the three
+    methods back to back), median over rounds: machine noise hits both sides alike."""
+    from . import mjcf
+    from .linearization import linearize
+
+    h5 = result.curves["fd5"].best()[0]
+    hm = result.curves["mujoco centered"].best()[0]
+    fns = {
+        "analytic": lambda: linearize(scene),
+        "fd5": lambda: linearize(scene, derivatives="fd5", step=h5, estimate_error=False),
+        "mujoco centered": lambda: mjcf.continuous_state_matrix(ms, scene.system, op, eps=hm,
+                                                                centered=True),
+    }
+    rounds: dict[str, list[float]] = {"fd5": [], "mujoco centered": []}
+    for _ in range(max(5, 3 * repeats)):
+        t = {k: median_time(f, 1) for k, f in fns.items()}
+        for k in rounds:
+            rounds[k].append(t[k] / t["analytic"])
+    return {k: statistics.median(v) for k, v in rounds.items()}
+
+
+# ------------------------------------------------------------------------------------------------
+def _fmt_time(t: float) -> str:
+    return f"{t * 1e3:.3f}" if t < 1 else f"{t * 1e3:.0f}"
+
+
+def report(results: list[SystemResult], out: Path, command: str) -> str:
+    import pinocchio as pin
+
+    lines = [
+        "# What accuracy costs in time",
+        "",
+        f"Produced by `{command}` on {platform.machine()} ({platform.processor() or 'cpu'}), "
+        f"pin {pin.__version__}, MuJoCo {_mujoco_version()}, numpy {np.__version__}. "
+        "Error: max |A - A_analytic| / max |A_analytic|. The analytic model's own error is "
+        "estimated as fd5's best agreement with it. Time: median of one complete "
+        "`pinlin.linearize` (operating point included, error estimate off) or one MuJoCo "
+        "`continuous_state_matrix` (state set + `mjd_transitionFD` + exact recovery of A from "
+        "the Euler step). Floating bases: rotated base, free fall at rest (a0 != 0). "
+        "Mechanisms: MuJoCo's soft loop equalities give a different (dependent-coordinate) "
+        "model, not compared here.",
+        "",
+        "## Headline (best step of each method)",
+        "",
+        "| system | nv | analytic [ms] | analytic error (est.) | fd3 best: h, error, ms "
+        "| fd5 best: h, error, ms | MuJoCo fwd best: eps, error, ms "
+        "| MuJoCo ctr best: eps, error, ms |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        cells = []
+        for key in ("fd3", "fd5", "mujoco forward", "mujoco centered"):
+            if key in r.curves:
+                h, e, t = r.curves[key].best()
+                cells.append(f"{h:.0e}, {e:.1e}, {_fmt_time(t)}")
+            else:
+                cells.append("n/a")
+        lines.append(f"| {r.name} ({r.kind}) | {r.nv} | {_fmt_time(r.analytic_time)} | "
+                     f"{r.analytic_error:.1e} | " + " | ".join(cells) + " |")
+    hum = next((r for r in results if r.name == HUMANOID), None)
+    if hum is not None and hum.ratios:
+        _, emc, _ = hum.curves["mujoco centered"].best()
+        lines += [
+            "",
+            f"## Targets on the floating-base humanoid ({HUMANOID}, nv = {hum.nv})",
+            "",
+            "Time ratios measured round by round (analytic, fd5 and MuJoCo timed back to back "
+            "in each round, median of the per-round ratios).",
+            "",
+            "| ratio | measured | target |",
+            "|---|---|---|",
+            f"| time fd5 (best h) / time analytic | {hum.ratios['fd5']:.1f} | >= 30 |",
+            f"| time MuJoCo centered (best eps) / time analytic | "
+            f"{hum.ratios['mujoco centered']:.1f} | >= 10 |",
+            f"| error of MuJoCo centered (best eps) / analytic error estimate | "
+            f"{emc / hum.analytic_error:.2g} | >= 1000 |",
+            f"| error of fd5 at the default step / analytic error estimate | "
+            f"{_error_at(hum.curves['fd5'], 1e-3) / hum.analytic_error:.2g} | - |",
+        ]
+    lines += ["", "## Sweeps", ""]
+    for r in results:
+        lines += [f"### {r.name} ({r.kind}, nv = {r.nv})", "",
+                  f"![{r.name}](accuracy_vs_time/{r.name}.png)", "",
+                  "| h / eps | " + " | ".join(f"{k} error | {k} ms" for k in r.curves) + " |",
+                  "|---|" + "---|---|" * len(r.curves)]
+        for i, h in enumerate(STEPS):
+            cells = [f"{c.errors[i]:.1e} | {_fmt_time(c.times[i])}" for c in r.curves.values()]
+            lines.append(f"| {h:.0e} | " + " | ".join(cells) + " |")
+        lines.append(f"\nanalytic: {_fmt_time(r.analytic_time)} ms, error estimate "
+                     f"{r.analytic_error:.1e}" + (f". MuJoCo: {r.note}" if r.note else "") + "\n")
+    text = "\n".join(lines) + "\n"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "accuracy_vs_time.md").write_text(text)
+    return text
+
+
+def _error_at(curve: Curve, h: float) -> float:
+    k = int(np.argmin(np.abs(np.log10(np.array(curve.steps)) - np.log10(h))))
+    return curve.errors[k]
+
+
+def _mujoco_version() -> str:
+    import mujoco
+
+    return mujoco.__version__
+
+
+def plot(results: list[SystemResult], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder = out / "accuracy_vs_time"
+    folder.mkdir(parents=True, exist_ok=True)
+    style = {"fd3": "o-", "fd5": "s-", "mujoco forward": "v--", "mujoco centered": "^--"}
+    for r in results:
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
+        for key, c in r.curves.items():
+            ax1.loglog(c.steps, c.errors, style[key], label=key)
+            ax2.loglog(np.array(c.times) * 1e3, c.errors, style[key].replace("-", ""), label=key)
+        ax1.axhline(r.analytic_error, color="k", lw=1, ls=":", label="analytic (est.)")
+        ax1.set_xlabel("step h / eps")
+        ax1.set_ylabel("max |A - A_analytic| / max |A_analytic|")
+        ax1.set_title(f"{r.name}: error versus step")
+        ax1.invert_xaxis()
+        ax2.loglog([r.analytic_time * 1e3], [r.analytic_error], "k*", ms=14, label="analytic")
+        ax2.set_xlabel("median time [ms]")
+        ax2.set_title(f"{r.name}: error versus time")
+        for ax in (ax1, ax2):
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(folder / f"{r.name}.png", dpi=90)
+        plt.close(fig)
+
+
+def run(systems: list[str], repeats: int = 5, out_dir: str | Path = "validation/reports",
+        progress: bool = True, command: str = "pinlin bench") -> list[SystemResult]:
+    """Measure ``systems`` (robot or bundled scene names), write the report and plots."""
+    from .exceptions import PinlinError
+
+    if repeats < 1:
+        raise PinlinError(f"--repeats must be >= 1, got {repeats}")
+    for name in systems:  # fail before the long run, not in the middle of it
+        _scene(name)
+    bar = Progress(len(systems) * 4 * len(STEPS), progress)
+    results = [measure(name, repeats, bar) for name in systems]
+    out = Path(out_dir)
+    text = report(results, out, command)
+    plot(results, out)
+    print(text)
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python validation/accuracy_vs_time.py`` and ``pinlin bench`` share this parser."""
+    from .cli import main as cli_main
+
+    return cli_main(["bench", *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,212 @@
+"""A scene as a MuJoCo model with only the effects the scene calls for, and MuJoCo's linearization
+of it expressed in pinlin's coordinates.
+
+The URDF is imported through ``MjSpec`` after its ``<visual>``, ``<collision>``, ``<mimic>``,
+``<dynamics>``, ``<transmission>`` and ``<gazebo>`` elements are removed (mesh paths, contacts,
+friction loss, URDF damping and mimic equalities are not part of a scene unless it says so).
+Joint limits and actuator force clamps are switched off, contacts disabled; gravity, armature,
+viscous damping and springs are set from the pinlin system; a floating base gets a free joint.
+
+Coordinates. MuJoCo's free joint has qpos = [p_world, quat (w, x, y, z)] and
+qvel = [v_world, w_body]; Pinocchio's free flyer has q = [p, quat (x, y, z, w)] and
+v = [v_body, w_body] with the position tangent also in the body frame. At the operating point
+both tangents are related by T = blockdiag(R0, I) on the free joint (joints map by name), and
+a_mj = T(q) a_pin adds (dT/dq) a0 = -R0 [a0_lin]x on the rotation columns when a0 != 0.
+
+MuJoCo's Euler step v+ = v + dt (M + dt D)^-1 f(q, v) gives the continuous bottom block row
+of A exactly from the one-step Jacobian of ``mjd_transitionFD``:
+[da/dq, da/dv] = M^-1 (M + dt D) (A_d[nv:] - [0, I]) / dt.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .exceptions import PinlinError
+
+_STRIP = ("visual", "collision", "mimic", "dynamics", "transmission", "gazebo")
+
+
+class MujocoError(PinlinError):
+    """MuJoCo cannot represent or compile the scene; the message gives MuJoCo's reason."""
+
+
+@dataclass
+class MujocoScene:
+    """A compiled MuJoCo model of a pinlin system and the maps between their coordinates.
+
+    Attributes:
+        model, data: MuJoCo model and data.
+        spec: The MjSpec it was compiled from (``spec.to_xml()`` writes MJCF).
+        dof: MuJoCo dof index of each pinlin velocity coordinate.
+        free: Whether the base is a free joint (pinlin coordinates 0-5).
+        dt: Time step [s].
+    """
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    spec: mujoco.MjSpec
+    dof: np.ndarray
+    free: bool
+    dt: float
+
+
+def strip_urdf(text: str) -> str:
+    """URDF text without the elements a scene does not call for, with MuJoCo's import options
+    (keep static bodies, no inertia from geometry, no balancing)."""
+    for tag in _STRIP:
+        text = re.sub(rf"<{tag}\b[^>]*/>", "", text, flags=re.S)
+        text = re.sub(rf"<{tag}\b.*?</{tag}>", "", text, flags=re.S)
+    options = ('<mujoco><compiler fusestatic="false" discardvisual="true" '
+               'balanceinertia="false" inertiafromgeom="false" strippath="true"/></mujoco>')
+    return re.sub(r"(<robot\b[^>]*>)", r"\1" + options, text, count=1)
+
+
+def build(system, dt: float = 1e-3) -> MujocoScene:
+    """The MuJoCo model of ``system`` (open chains; loops, mimic and rotation: not yet).
+
+    Raises:
+        MujocoError: MuJoCo refuses the model (its reason is quoted), or the scene has effects
+            this exporter cannot express.
+    """
+    scene = system.scene
+    if system.rotation is not None:
+        raise MujocoError(f"scene '{scene.name}': steady rotation has no MuJoCo counterpart here")
+    if system.constraints:
+        raise MujocoError(f"scene '{scene.name}': loops and mimic couplings are not exported yet")
+    text = strip_urdf(system.urdf_path.read_text(encoding="utf-8"))
+    try:
+        spec = mujoco.MjSpec.from_string(text)
+    except Exception as exc:  # MuJoCo raises ValueError with its reason
+        raise MujocoError(f"MuJoCo cannot import {system.urdf_path}: {exc}") from None
+    free = system.base_joint is not None
+    if free:
+        root = spec.worldbody.first_body()
+        root.add_freejoint(name=system.base_joint)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    spec.option.timestep = dt
+    g = scene.effects.gravity
+    spec.option.gravity = np.zeros(3) if g is None else np.asarray(g, float)
+    spec.option.disableflags |= (mujoco.mjtDisableBit.mjDSBL_CONTACT
+                                 | mujoco.mjtDisableBit.mjDSBL_LIMIT
+                                 | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+                                 | mujoco.mjtDisableBit.mjDSBL_EQUALITY)
+    known = set(system.joints)
+    for joint in spec.joints:
+        if joint.type == mujoco.mjtJoint.mjJNT_FREE:
+            continue
+        if joint.name not in known:
+            raise MujocoError(f"scene '{scene.name}': MuJoCo joint '{joint.name}' is not in "
+                              "the Pinocchio model (a locked or reduced joint)")
+        j = system.joints[joint.name]
+        joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+        joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        joint.armature = float(system.model.armature[j.idx_v])
+        # damping and stiffness are 3-vectors in MuJoCo 4 (linear term first).
+        joint.damping = np.array([system.damping[j.idx_v], 0.0, 0.0])
+        joint.frictionloss = 0.0
+        joint.stiffness = np.array([system.stiffness[j.idx_v], 0.0, 0.0])
+        if j.continuous:
+            rest = np.arctan2(system.q_rest[j.idx_q + 1], system.q_rest[j.idx_q])
+        else:
+            rest = system.q_rest[j.idx_q]
+        joint.springref = float(rest)
+    try:
+        model = spec.compile()
+    except Exception as exc:
+        raise MujocoError(f"MuJoCo refuses '{scene.name}': {exc}") from None
+    dof = np.zeros(system.nv, dtype=int)
+    for name, j in system.joints.items():
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if jid < 0:
+            raise MujocoError(f"scene '{scene.name}': joint '{name}' is missing in MuJoCo")
+        dof[j.idx_v:j.idx_v + j.nv] = model.jnt_dofadr[jid] + np.arange(j.nv)
+    if model.nv != system.nv:
+        raise MujocoError(f"scene '{scene.name}': MuJoCo has {model.nv} dofs, Pinocchio "
+                          f"{system.nv}")
+    return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt)
+
+
+def set_state(ms: MujocoScene, system, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> None:
+    """Write pinlin's (q, v) and generalized force tau into MuJoCo's data."""
+    m, d = ms.model, ms.data
+    for name, j in system.joints.items():
+        jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        adr = m.jnt_qposadr[jid]
+        qj = q[j.idx_q:j.idx_q + j.nq]
+        if m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_FREE:
+            d.qpos[adr:adr + 3] = qj[:3]
+            d.qpos[adr + 3:adr + 7] = [qj[6], qj[3], qj[4], qj[5]]
+        elif j.continuous:
+            d.qpos[adr] = np.arctan2(qj[1], qj[0])
+        else:
+            d.qpos[adr] = qj[0]
+    rot = _base_rotation(system, q) if ms.free else None
+    vm = v.copy()
+    if rot is not None:
+        vm[:3] = rot @ v[:3]
+    d.qvel[ms.dof] = vm
+    d.qfrc_applied[:] = 0.0
+    d.qfrc_applied[ms.dof] = tau if rot is None else np.concatenate([rot @ tau[:3], tau[3:]])
+    d.ctrl[:] = 0.0
+    mujoco.mj_forward(m, d)
+
+
+def _base_rotation(system, q: np.ndarray) -> np.ndarray:
+    import pinocchio as pin
+
+    j = system.joints[system.base_joint]
+    quat = q[j.idx_q + 3:j.idx_q + 7]
+    return pin.Quaternion(quat[3], quat[0], quat[1], quat[2]).matrix()
+
+
+def continuous_state_matrix(ms: MujocoScene, system, op, eps: float = 1e-6, centered: bool = True
+                 ) -> np.ndarray:
+    """MuJoCo's linearization at ``op`` as a continuous A in pinlin's state [dq; v].
+
+    The operating point's inputs are applied as generalized forces (``qfrc_applied``); the
+    base of a floating robot is not actuated.
+    """
+    m, d = ms.model, ms.data
+    nv = system.nv
+    tau = system.input_matrix @ op.u
+    if ms.free and np.any(tau[:6]):
+        raise MujocoError("a floating base with applied base forces is not supported")
+    set_state(ms, system, op.q, op.v, tau)
+    A_d = np.zeros((2 * nv + m.na, 2 * nv + m.na))
+    mujoco.mjd_transitionFD(m, d, eps, centered, A_d, None, None, None)
+    M = np.zeros((nv, nv))
+    mujoco.mj_fullM(m, d, M)
+    bottom = A_d[nv:2 * nv, :2 * nv].copy()
+    bottom[:, nv:] -= np.eye(nv)
+    bottom /= ms.dt
+    if np.any(m.dof_damping):
+        bottom = np.linalg.solve(M, (M + ms.dt * np.diag(m.dof_damping)) @ bottom)
+    # MuJoCo dof order -> pinlin order.
+    idx = ms.dof
+    dadq = bottom[np.ix_(idx, idx)]
+    dadv = bottom[np.ix_(idx, nv + idx)]
+    if ms.free:
+        R = _base_rotation(system, op.q)
+        T = np.eye(nv)
+        T[:3, :3] = R
+        Tinv = T.copy()
+        Tinv[:3, :3] = R.T
+        corr = np.zeros((nv, nv))
+        a_lin = op.a[:3]
+        corr[:3, 3:6] = -R @ _skew(a_lin)
+        dadq = Tinv @ (dadq @ T - corr)
+        dadv = Tinv @ dadv @ T
+    A = np.zeros((2 * nv, 2 * nv))
+    A[:nv, nv:] = np.eye(nv)
+    A[nv:, :nv] = dadq
+    A[nv:, nv:] = dadv
+    return A
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])

@@ -1,0 +1,95 @@
+"""Numerical derivatives (chapter 9.2): orders of convergence, error estimates, steps, and the
+accuracy-versus-time benchmark. The reference is the analytic model, itself checked against
+finite differences of pin.aba in test_linearize_fd.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import URDF_DIR
+
+import pinlin
+from pinlin import mjcf
+from pinlin.bench import run as bench_run
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    scene = pinlin.Scene.from_robot("ur5")
+    return scene, pinlin.linearize(scene)
+
+
+def _error(scene, ref, backend, h):
+    model = pinlin.linearize(scene, derivatives=backend, step=h)
+    return np.abs(model.A - ref.A).max() / np.abs(ref.A).max(), model
+
+
+@pytest.mark.parametrize("backend, steps, order", [
+    ("fd3", (4e-3, 2e-3, 1e-3), 2.0),
+    ("fd5", (8e-2, 4e-2, 2e-2), 4.0),
+])
+def test_truncation_error_has_the_formula_order(ur5, backend, steps, order):
+    """In the truncation range the error falls as h^2 (eq. 9.54) and h^4 (eq. 9.55)."""
+    scene, ref = ur5
+    errors = [_error(scene, ref, backend, h)[0] for h in steps]
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert abs(slope - order) < 0.2 * order, (slope, errors)
+
+
+@pytest.mark.parametrize("backend, h", [("fd3", 1e-2), ("fd3", 1e-5), ("fd5", 5e-2),
+                                        ("fd5", 1e-3)])
+def test_error_estimate_tracks_the_true_error(ur5, backend, h):
+    """The estimate reported with every numerical model is within a small factor of the error
+    against the analytic model, or at most a rounding-level bound when that error is tiny."""
+    scene, ref = ur5
+    true, model = _error(scene, ref, backend, h)
+    est = model.info["error_estimate"]
+    assert est >= 0.3 * true, (est, true)
+    assert est <= 30 * true + 1e-9, (est, true)
+
+
+def test_error_estimate_on_a_closed_loop_and_penalty():
+    model = pinlin.linearize(URDF_DIR / "four_bar.toml", derivatives="fd3")
+    exact = pinlin.linearize(URDF_DIR / "four_bar.toml")
+    true = np.abs(model.A - exact.A).max() / np.abs(exact.A).max()
+    assert true <= 3 * model.info["error_estimate"] + 1e-14
+    pen = pinlin.linearize(URDF_DIR / "four_bar.toml", formulation="penalty", derivatives="fd5")
+    assert 0 < pen.info["error_estimate"] < 1e-8
+
+
+def test_steps_per_variable():
+    scene = pinlin.Scene.load(URDF_DIR / "ur5_arm.toml")   # damping: C is differenced too
+    exact = pinlin.linearize(scene)
+    model = pinlin.linearize(scene, derivatives="fd5", step={"q": 2e-3, "v": 1e-2})
+    assert model.info["step"] == {"q": 2e-3, "v": 1e-2, "u": 1e-3}
+    np.testing.assert_allclose(model.A, exact.A, atol=1e-8 * np.abs(exact.A).max())
+    np.testing.assert_allclose(model.B, exact.B, atol=1e-12 * np.abs(exact.B).max())
+    with pytest.raises(pinlin.PinlinError, match="unknown step key 'a'"):
+        pinlin.linearize(scene, derivatives="fd3", step={"a": 1e-3})
+    with pytest.raises(pinlin.PinlinError, match="positive number"):
+        pinlin.linearize(scene, derivatives="fd3", step={"q": 0.0})
+
+
+@pytest.mark.parametrize("robot, base", [("ur5", None), ("solo12", [0.3, -0.4, 0.8])])
+def test_mujoco_transition_matrix_agrees_with_analytic(robot, base):
+    """MuJoCo's centered transition derivatives, recovered as a continuous A in pinlin's
+    coordinates (free-joint frames converted; rotated base), match the analytic model."""
+    over = {}
+    if base is not None:
+        over = {"operating_point": {"allow_non_equilibrium": True,
+                                    "q": {"root_joint": {"position": [0, 0, 0.5], "rpy": base}}}}
+    scene = pinlin.Scene.from_robot(robot, **over)
+    model = pinlin.linearize(scene)
+    ms = mjcf.build(scene.system)
+    A = mjcf.continuous_state_matrix(ms, scene.system, model.operating_point, eps=1e-6)
+    assert np.abs(A - model.A).max() <= 1e-7 * np.abs(model.A).max()
+
+
+def test_bench_writes_report_and_plots(tmp_path, capsys):
+    results = bench_run(["double_pendulum"], repeats=1, out_dir=tmp_path, progress=False)
+    text = (tmp_path / "accuracy_vs_time.md").read_text()
+    assert "| double_pendulum (bundled scene) | 2 |" in text
+    assert (tmp_path / "accuracy_vs_time" / "double_pendulum.png").stat().st_size > 1000
+    curves = results[0].curves
+    assert set(curves) == {"fd3", "fd5", "mujoco forward", "mujoco centered"}
+    assert curves["fd5"].best()[1] < 1e-10
