@@ -95,9 +95,14 @@ class Progress:
             sys.stderr.write("\n")
 
 
-def _scene(name: str):
+def check_scene(name: str):
+    """(scene, kind) used by the benchmark and the validation: a scene file, a bundled scene or
+    a robot; a floating-base robot falls freely at rest from a rotated base pose."""
     from .scene import Scene, bundled_scenes
 
+    if name.endswith((".toml", ".urdf")):
+        scene = Scene.resolve(name)
+        return scene, ("mechanism (loops)" if scene.loops else "scene file")
     if name in bundled_scenes():
         scene = Scene.load(bundled_scenes()[name])
         return scene, ("mechanism (loops)" if scene.loops else "bundled scene")
@@ -118,7 +123,7 @@ def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
     from . import mjcf
     from .linearization import linearize
 
-    scene, kind = _scene(name)
+    scene, kind = check_scene(name)
     system = scene.system
     ref = linearize(scene)
     scale = float(np.abs(ref.A).max())
@@ -308,7 +313,7 @@ def run(systems: list[str], repeats: int = 5, out_dir: str | Path = "validation/
     if repeats < 1:
         raise PinlinError(f"--repeats must be >= 1, got {repeats}")
     for name in systems:  # fail before the long run, not in the middle of it
-        _scene(name)
+        check_scene(name)
     bar = Progress(len(systems) * 4 * len(STEPS), progress)
     results = [measure(name, repeats, bar) for name in systems]
     out = Path(out_dir)

@@ -1,4 +1,5 @@
-"""Command-line interface: ``pinlin linearize``, ``pinlin bench``, ``pinlin robots``.
+"""Command-line interface: ``pinlin linearize``, ``pinlin validate``, ``pinlin export-mjcf``,
+``pinlin bench``, ``pinlin robots``.
 
 Bad input never produces a traceback: the error goes to stderr as one line and the exit status
 is 2.
@@ -142,6 +143,45 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from .validate import run, targets
+
+    if not args.all and not args.targets:
+        raise _UsageError("pinlin validate: name scenes or robots, or give --all "
+                          "(see 'pinlin validate --help')")
+    names = targets(args.all, list(args.targets))
+    command = "pinlin validate" + (" --all" if args.all else "") + "".join(
+        f" {t}" for t in args.targets)
+    results = run(names, args.out_dir, not args.no_progress, command)
+    for r in results:
+        print(f"{r.name:28s} {r.status:15s} {r.reason}")
+    failed = [r.name for r in results if r.failed]
+    print(f"{len(results)} systems: {sum(r.passed for r in results)} pass, {len(failed)} fail"
+          + (f" ({', '.join(failed)})" if failed else ""))
+    return 1 if failed else 0
+
+
+def _cmd_export_mjcf(args: argparse.Namespace) -> int:
+    from .mjcf import build
+    from .scene import Scene
+
+    out = Path(args.output)
+    if out.suffix != ".xml":
+        raise ModelFileError(out, "expected an .xml file for MJCF")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise ModelFileError(out, f"cannot write: folder '{parent}' does not exist")
+    scene = Scene.resolve(args.target)
+    ms = build(scene.system, dt=args.dt)
+    try:
+        out.write_text(ms.spec.to_xml())
+    except OSError as exc:
+        raise ModelFileError(out, f"cannot write: {exc.strerror or exc}") from None
+    print(f"MJCF of '{scene.name}' written to {out} (nq = {ms.model.nq}, nv = {ms.model.nv}, "
+          f"{ms.model.neq} equalities, dt = {args.dt:g} s)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .derivatives import BACKENDS
     from .formulations import BASES, FORMULATIONS, PENALTY_DEFAULTS
@@ -182,6 +222,18 @@ def build_parser() -> argparse.ArgumentParser:
                      help="folder for accuracy_vs_time.md and its plots")
     ben.add_argument("--no-progress", action="store_true", help="no progress bar")
     ben.set_defaults(func=_cmd_bench)
+    val = sub.add_parser("validate", help="compare linear models with MuJoCo and write reports")
+    val.add_argument("targets", nargs="*", metavar="SCENE_OR_ROBOT")
+    val.add_argument("--all", action="store_true",
+                     help="every bundled scene and every example-robot-data robot that loads")
+    val.add_argument("--out-dir", default="validation/reports", help="folder for the reports")
+    val.add_argument("--no-progress", action="store_true", help="no progress bar")
+    val.set_defaults(func=_cmd_validate)
+    exp = sub.add_parser("export-mjcf", help="write the scene as MJCF with only its effects")
+    exp.add_argument("target", metavar="SCENE_OR_ROBOT")
+    exp.add_argument("-o", "--output", required=True, metavar="FILE.xml")
+    exp.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default 1e-3)")
+    exp.set_defaults(func=_cmd_export_mjcf)
     rob = sub.add_parser("robots", help="list the example-robot-data robots that load")
     rob.set_defaults(func=_cmd_robots)
     return parser

@@ -15,7 +15,10 @@ a_mj = T(q) a_pin adds (dT/dq) a0 = -R0 [a0_lin]x on the rotation columns when a
 
 MuJoCo's Euler step v+ = v + dt (M + dt D)^-1 f(q, v) gives the continuous bottom block row
 of A exactly from the one-step Jacobian of ``mjd_transitionFD``:
-[da/dq, da/dv] = M^-1 (M + dt D) (A_d[nv:] - [0, I]) / dt.
+[da/dq, da/dv] = M^-1 (M + dt D) (A_d[nv:] - [0, I]) / dt. Its eigenvalues are MuJoCo's
+continuous-time eigenvalues with no time-step bias; log(z)/dt of A_d's eigenvalues z carries an
+O(dt^2) bias for undamped modes (symplectic Euler), O(dt) for damped ones, and loses the
+position rows' information to rounding when dt is small.
 """
 
 from __future__ import annotations
@@ -66,8 +69,21 @@ def strip_urdf(text: str) -> str:
     return re.sub(r"(<robot\b[^>]*>)", r"\1" + options, text, count=1)
 
 
-def build(system, dt: float = 1e-3) -> MujocoScene:
-    """The MuJoCo model of ``system`` (open chains; loops, mimic and rotation: not yet).
+#: Soft-constraint settings of loop and mimic equalities: impedance d as close to 1 as MuJoCo
+#: allows (0.9999) and a time constant of LOOP_TIMECONST_STEPS time steps (refsafe off).
+#: MuJoCo leaks a fraction 1 - d of the unconstrained acceleration through its constraints,
+#: a relative model error of order 1e-4 that no time step removes; validation therefore also
+#: builds the model at d = 0.999 and extrapolates the eigenvalues to d = 1 (linear in 1 - d).
+LOOP_IMPEDANCE = 0.9999
+LOOP_TIMECONST_STEPS = 2.0
+
+
+def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> MujocoScene:
+    """The MuJoCo model of ``system`` with exactly the scene's effects.
+
+    Loops become ``connect`` (point) or ``weld`` equalities between sites at the two frames,
+    mimic couplings ``joint`` equalities (q_m = offset + multiplier q_j), both stiff
+    (solref time constant 2 dt, solimp ``impedance``). Steady rotation cannot be expressed.
 
     Raises:
         MujocoError: MuJoCo refuses the model (its reason is quoted), or the scene has effects
@@ -75,9 +91,8 @@ def build(system, dt: float = 1e-3) -> MujocoScene:
     """
     scene = system.scene
     if system.rotation is not None:
-        raise MujocoError(f"scene '{scene.name}': steady rotation has no MuJoCo counterpart here")
-    if system.constraints:
-        raise MujocoError(f"scene '{scene.name}': loops and mimic couplings are not exported yet")
+        raise MujocoError(f"scene '{scene.name}': steady rotation has no MuJoCo counterpart "
+                          "(MuJoCo integrates in an inertial frame)")
     text = strip_urdf(system.urdf_path.read_text(encoding="utf-8"))
     try:
         spec = mujoco.MjSpec.from_string(text)
@@ -91,17 +106,26 @@ def build(system, dt: float = 1e-3) -> MujocoScene:
     spec.option.timestep = dt
     g = scene.effects.gravity
     spec.option.gravity = np.zeros(3) if g is None else np.asarray(g, float)
-    spec.option.disableflags |= (mujoco.mjtDisableBit.mjDSBL_CONTACT
-                                 | mujoco.mjtDisableBit.mjDSBL_LIMIT
-                                 | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
-                                 | mujoco.mjtDisableBit.mjDSBL_EQUALITY)
+    flags = (mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_LIMIT
+             | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+    if system.constraints:
+        flags |= mujoco.mjtDisableBit.mjDSBL_REFSAFE
+        _add_equalities(spec, system, dt, impedance)
+        # Solve the constraints to convergence: solver noise would swamp finite differences.
+        spec.option.tolerance = 0.0
+        spec.option.ls_tolerance = 0.0
+        spec.option.iterations = 500
+    else:
+        flags |= mujoco.mjtDisableBit.mjDSBL_EQUALITY
+    spec.option.disableflags |= flags
     known = set(system.joints)
     for joint in spec.joints:
         if joint.type == mujoco.mjtJoint.mjJNT_FREE:
             continue
         if joint.name not in known:
-            raise MujocoError(f"scene '{scene.name}': MuJoCo joint '{joint.name}' is not in "
-                              "the Pinocchio model (a locked or reduced joint)")
+            raise MujocoError(f"scene '{scene.name}': MuJoCo joint '{joint.name}' is locked in "
+                              "the Pinocchio model (a reduced model); its lock values are not "
+                              "known from the URDF, so the model has no MuJoCo counterpart")
         j = system.joints[joint.name]
         joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
         joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
@@ -129,6 +153,39 @@ def build(system, dt: float = 1e-3) -> MujocoScene:
         raise MujocoError(f"scene '{scene.name}': MuJoCo has {model.nv} dofs, Pinocchio "
                           f"{system.nv}")
     return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt)
+
+
+def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) -> None:
+    solref = np.array([LOOP_TIMECONST_STEPS * dt, 1.0])
+    solimp = np.array([impedance, impedance, 0.001, 0.5, 2.0])
+    bodies = {b.name for b in spec.bodies}
+    for i, loop in enumerate(system.scene.loops):
+        sites = []
+        for k, frame in enumerate((loop.frame1, loop.frame2)):
+            if frame not in bodies:
+                raise MujocoError(f"loops[{i}].frame{k + 1}: '{frame}' is not a URDF link, so "
+                                  "MuJoCo has no body for it")
+            name = f"{loop.name}_site{k + 1}"
+            spec.body(frame).add_site(name=name)
+            sites.append(name)
+        eq = spec.add_equality()
+        eq.type = (mujoco.mjtEq.mjEQ_CONNECT if loop.type == "point" else mujoco.mjtEq.mjEQ_WELD)
+        eq.objtype = mujoco.mjtObj.mjOBJ_SITE
+        eq.name, eq.name1, eq.name2 = loop.name, sites[0], sites[1]
+        eq.solref, eq.solimp = solref, solimp
+        if loop.type == "weld":
+            eq.data[:] = 0.0
+            eq.data[6] = 1.0     # relative orientation (w, x, y, z): identity
+            eq.data[10] = 1.0    # torque scale
+    from .constraints import read_mimic_tags
+
+    if system.scene.effects.mimic:
+        for c in read_mimic_tags(system.urdf_path):
+            eq = spec.add_equality()
+            eq.type = mujoco.mjtEq.mjEQ_JOINT
+            eq.name1, eq.name2 = c.mimic, c.joint
+            eq.data[:5] = [c.offset, c.multiplier, 0.0, 0.0, 0.0]
+            eq.solref, eq.solimp = solref, solimp
 
 
 def set_state(ms: MujocoScene, system, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> None:
@@ -164,13 +221,9 @@ def _base_rotation(system, q: np.ndarray) -> np.ndarray:
     return pin.Quaternion(quat[3], quat[0], quat[1], quat[2]).matrix()
 
 
-def continuous_state_matrix(ms: MujocoScene, system, op, eps: float = 1e-6, centered: bool = True
-                 ) -> np.ndarray:
-    """MuJoCo's linearization at ``op`` as a continuous A in pinlin's state [dq; v].
-
-    The operating point's inputs are applied as generalized forces (``qfrc_applied``); the
-    base of a floating robot is not actuated.
-    """
+def transition_matrix(ms: MujocoScene, system, op, eps: float = 1e-6, centered: bool = True
+                      ) -> np.ndarray:
+    """The one-step Jacobian A_d of ``mjd_transitionFD`` at ``op`` (MuJoCo coordinates)."""
     m, d = ms.model, ms.data
     nv = system.nv
     tau = system.input_matrix @ op.u
@@ -179,13 +232,44 @@ def continuous_state_matrix(ms: MujocoScene, system, op, eps: float = 1e-6, cent
     set_state(ms, system, op.q, op.v, tau)
     A_d = np.zeros((2 * nv + m.na, 2 * nv + m.na))
     mujoco.mjd_transitionFD(m, d, eps, centered, A_d, None, None, None)
-    M = np.zeros((nv, nv))
-    mujoco.mj_fullM(m, d, M)
+    mujoco.mj_forward(m, d)  # derived quantities (qM, qacc) are left stale by the differencing
+    return A_d
+
+
+def recover_continuous(ms: MujocoScene, A_d: np.ndarray) -> np.ndarray:
+    """The continuous A (MuJoCo coordinates) from the Euler one-step Jacobian A_d, exactly:
+    its velocity rows are [0, I] + dt (M + dt D)^-1 M [da/dq, da/dv]; the top block row of the
+    continuous A is [0, I]. Needs ``ms.data`` at the state A_d was taken at."""
+    m, d = ms.model, ms.data
+    nv = m.nv
     bottom = A_d[nv:2 * nv, :2 * nv].copy()
     bottom[:, nv:] -= np.eye(nv)
     bottom /= ms.dt
     if np.any(m.dof_damping):
+        M = np.zeros((nv, nv))
+        mujoco.mj_fullM(m, d, M)
         bottom = np.linalg.solve(M, (M + ms.dt * np.diag(m.dof_damping)) @ bottom)
+    A = np.zeros((2 * nv, 2 * nv))
+    A[:nv, nv:] = np.eye(nv)
+    A[nv:] = bottom
+    return A
+
+
+def continuous_state_matrix(ms: MujocoScene, system, op, eps: float = 1e-6,
+                            centered: bool = True) -> np.ndarray:
+    """MuJoCo's linearization at ``op`` as a continuous A in pinlin's state [dq; v].
+
+    The operating point's inputs are applied as generalized forces (``qfrc_applied``); the
+    base of a floating robot is not actuated.
+    """
+    A_d = transition_matrix(ms, system, op, eps, centered)
+    return to_pinlin_coordinates(ms, system, op, recover_continuous(ms, A_d))
+
+
+def to_pinlin_coordinates(ms: MujocoScene, system, op, A_c: np.ndarray) -> np.ndarray:
+    """MuJoCo's continuous A (its dof order, free-joint conventions) in pinlin's [dq; v]."""
+    nv = system.nv
+    bottom = A_c[nv:]
     # MuJoCo dof order -> pinlin order.
     idx = ms.dof
     dadq = bottom[np.ix_(idx, idx)]

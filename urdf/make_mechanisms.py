@@ -120,10 +120,13 @@ def delta() -> None:
                f"240 degrees,\n     base radius {R} m, platform radius {r} m, arms {L1} m "
                f"({m_arm} kg), rods {L2} m ({m_rod} kg),\n     platform {m_plat} kg. Each arm "
                "turns about the tangent of the base circle (actuated), its rod hangs from a\n"
-               "     universal joint; the platform is guided in translation by a massless "
-               "x-y-z slider chain\n     (the role of a real delta's parallelograms). Loops: "
+               "     universal joint (cross 0.01 kg); the platform is guided in translation by "
+               "an x-y-z slider chain\n     (carriages 0.05 kg; the role of a real delta's "
+               "parallelograms). Loops: "
                "rod<i>_tip = anchor<i>, three point loops.")
-    parts = [link("ground"), link("carriage_x"), link("carriage_y"),
+    small = '<inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/>'
+    parts = [link("ground"), link("carriage_x", 0.05, "0 0 0", small),
+             link("carriage_y", 0.05, "0 0 0", small),
              link("platform", m_plat, "0 0 0",
                   '<inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.002"/>'),
              joint("platform_x", "prismatic", "ground", "carriage_x", axis="1 0 0"),
@@ -136,7 +139,8 @@ def delta() -> None:
         parts += [
             # arm frame: x radial outward, y tangent (hinge axis), z up
             link(f"{leg}_arm", m_arm, f"{L1 / 2:.12g} 0 0", rod_inertia(m_arm, L1, "x")),
-            link(f"{leg}_cross"),
+            link(f"{leg}_cross", 0.01, "0 0 0",
+                 '<inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/>'),
             link(f"{leg}_rod", m_rod, f"0 0 {-L2 / 2:.12g}", rod_inertia(m_rod, L2, "z")),
             link(f"rod{i + 1}_tip"), link(f"anchor{i + 1}"),
             joint(f"{leg}_hip", "revolute", "ground", f"{leg}_arm",

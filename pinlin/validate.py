@@ -1,0 +1,394 @@
+"""``pinlin validate``: every linear model checked against MuJoCo, which shares none of its code.
+
+For one system: (1) sanity at q0 — mass matrix, generalized gravity and total mass of the MuJoCo
+scene against Pinocchio's (a mismatch stops with the worst joint named); (2) matrices — the
+continuous A recovered exactly from MuJoCo's centered ``mjd_transitionFD`` against pinlin's A
+(open chains; with loops MuJoCo's state is the dependent coordinates under soft equalities, a
+different model, so only eigenvalues are compared); (3) eigenvalues — those of MuJoCo's continuous A
+(recovered exactly from the one-step map, so free of the time-step bias that log(z)/dt carries:
+O(dt^2) undamped, O(dt) damped; log(z)/dt is listed beside them) matched to pinlin's by linear
+assignment; rigid (zero) modes compared in absolute terms; MuJoCo's extra soft-constraint modes
+(2 per loop row) set aside.
+
+Tolerances, written into every report:
+
+- matrix: 1e-8 relative (max |A_mj - A| / max |A|). MuJoCo's centered differences at eps and
+  2 eps = 3e-4, 6e-4 combined by Richardson leave O(eps^4) + u / eps, ~1e-12..1e-10 relative
+  (plain centered differences bottom out near 1e-9 on these robots).
+- eigenvalues, non-rigid: 1e-6 relative, or the first-order perturbation bound
+  10 kappa_i |A_mj - A|_2 / |lam_i| where that is larger (kappa_i: the eigenvalue's condition
+  number from pinlin's left and right vectors): a tiny or ill-conditioned eigenvalue cannot be
+  resolved to 1e-6 from finite differences, and the report counts and marks those modes.
+  dt = min(1e-3, 0.01 / max |lam|) for open chains keeps the
+  listed log(z)/dt within about 1e-5 of the continuous eigenvalues.
+- rigid and near-rigid modes: a zero eigenvalue of a Jordan block moves like the square root
+  of a perturbation of A, with constants set by the whole model. pinlin perturbs the bottom
+  block row of its own A by random matrices with entries of the measured difference |dA|
+  (1e-8 max |A| for loops) and
+  takes 10x the largest move of its zero eigenvalues as the absolute tolerance; eigenvalues
+  below it are compared in absolute terms.
+- loops: MuJoCo's equality constraints leak a fraction 1 - d (impedance d <= 0.9999) of the
+  free acceleration: the physical eigenvalues are off by O(1e-4) at d = 0.9999. pinlin builds
+  MuJoCo at d = 0.999 and d = 0.9999 (dt = 1e-4, time constant 2 dt) and extrapolates each
+  matched eigenvalue linearly to d = 1; both raw and extrapolated errors are reported.
+"""
+
+from __future__ import annotations
+
+import math
+import platform
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+MATRIX_TOL = 1e-8
+EIG_TOL = 1e-6
+#: Open chains: MuJoCo's centered differences at eps and 2 eps, combined by Richardson
+#: extrapolation (the O(eps^2) truncation cancels; what is left is O(eps^4) + u / eps).
+EPS_OPEN = 3e-4
+#: Loops: stiff soft constraints (time constant 2 dt) make larger steps inaccurate.
+EPS_LOOP = 1e-6
+LOOP_DT = 1e-4
+
+
+@dataclass
+class Validation:
+    """Outcome for one system."""
+
+    name: str
+    status: str                      # "pass", "FAIL", "MuJoCo refuses", "pinlin refuses", ...
+    reason: str = ""
+    effects: list[str] = field(default_factory=list)
+    nv: int = 0
+    dt: float = float("nan")
+    sanity: dict[str, float] = field(default_factory=dict)
+    matrix_error: float | None = None
+    eig_error: float = float("nan")
+    eig_error_raw: float = float("nan")
+    rigid_error: float = float("nan")
+    rigid_tol: float = float("nan")
+    table: list[tuple] = field(default_factory=list)
+    set_aside: list[complex] = field(default_factory=list)
+    pinlin_eigs: np.ndarray | None = None
+    mujoco_eigs: np.ndarray | None = None
+    log_eigs: np.ndarray | None = None
+    eig_tols: np.ndarray | None = None
+    conditioning_limited: int = 0
+
+    @property
+    def passed(self) -> bool:
+        return self.status == "pass"
+
+    @property
+    def failed(self) -> bool:
+        return self.status == "FAIL"
+
+
+def _map_matrix(ms, system, q) -> np.ndarray:
+    """T with v_mujoco = T v_pinlin at q (free-joint linear part in the world frame)."""
+    from .mjcf import _base_rotation
+
+    T = np.eye(system.nv)
+    if ms.free:
+        T[:3, :3] = _base_rotation(system, q)
+    return T
+
+
+def sanity(ms, system, q: np.ndarray) -> dict[str, float]:
+    """Relative mismatches of M, generalized gravity and total mass at q (v = 0).
+
+    Raises:
+        MujocoError: a mismatch above 1e-9 relative, naming the worst joint.
+    """
+    import mujoco
+    import pinocchio as pin
+
+    from .mjcf import MujocoError, set_state
+
+    nv = system.nv
+    set_state(ms, system, q, np.zeros(nv), np.zeros(nv))
+    M_mj = np.zeros((nv, nv))
+    mujoco.mj_fullM(ms.model, ms.data, M_mj)
+    idx = ms.dof
+    T = _map_matrix(ms, system, q)
+    M_mj = T.T @ M_mj[np.ix_(idx, idx)] @ T
+    g_mj = T.T @ ms.data.qfrc_bias[idx]  # gravity only at v = 0 (springs are passive forces)
+    M = system.mass_matrix(q)
+    g = system.static_force(q)
+    moving = ms.model.body_weldid != 0   # bodies welded to the world do not move
+    mass_mj = float(np.sum(ms.model.body_mass[moving]))
+    mass = float(pin.computeTotalMass(system.model))
+    out = {
+        "mass matrix": float(np.abs(M_mj - M).max() / np.abs(M).max()),
+        "gravity vector": float(np.abs(g_mj - g).max() / max(np.abs(g).max(), 1e-300))
+        if np.any(g) else float(np.abs(g_mj).max()),
+        "total mass": abs(mass_mj - mass) / mass,
+    }
+    for key, value in out.items():
+        if value > 1e-9:
+            if key == "total mass":
+                where = f"MuJoCo {mass_mj:.9g} kg, Pinocchio {mass:.9g} kg"
+            else:
+                diff = np.abs(M_mj - M).max(axis=1) if key == "mass matrix" else np.abs(g_mj - g)
+                where = f"worst at joint coordinate '{system.coordinate_names[int(diff.argmax())]}'"
+            raise MujocoError(f"scene '{system.scene.name}': {key} of the MuJoCo scene differs "
+                              f"from Pinocchio's by {value:.2e} (relative), {where}")
+    return out
+
+
+def _eigs_mujoco(ms, system, op, loops: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(eigenvalues of MuJoCo's continuous A, log(z)/dt of its one-step map, the continuous A
+    in MuJoCo coordinates)."""
+    from .mjcf import recover_continuous, transition_matrix
+
+    if loops:
+        A_d = transition_matrix(ms, system, op, eps=EPS_LOOP, centered=True)
+    else:
+        A_2 = transition_matrix(ms, system, op, eps=2 * EPS_OPEN, centered=True)
+        A_1 = transition_matrix(ms, system, op, eps=EPS_OPEN, centered=True)
+        A_d = (4.0 * A_1 - A_2) / 3.0
+    A_c = recover_continuous(ms, A_d)
+    z = np.linalg.eigvals(A_d).astype(complex)
+    return np.linalg.eigvals(A_c), np.log(z) / ms.dt, A_c
+
+
+def _zero_sensitivity(A: np.ndarray, ref: np.ndarray, d_abs: float) -> float:
+    """Largest move of the (near-)zero eigenvalues of A under random perturbations of its bottom
+    block row with entries of size d_abs (three seeded draws); at least sqrt(d_abs |A|)."""
+    scale = math.sqrt(d_abs * float(np.abs(A).max()))
+    small = np.abs(ref) <= 10 * scale
+    if not small.any():
+        return scale
+    rng = np.random.default_rng(0)
+    worst = scale
+    n = A.shape[0] // 2
+    for _ in range(3):
+        E = np.zeros_like(A)  # differences live in the bottom block row; the top is [0, I]
+        E[n:] = d_abs * rng.uniform(-1.0, 1.0, (A.shape[0] - n, A.shape[1]))
+        lam = np.linalg.eigvals(A + E)
+        moved = lam[_match(ref, lam)]
+        worst = max(worst, float(np.abs(moved[small] - ref[small]).max()))
+    return worst
+
+
+def _match(ref: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Indices into lam matched to each ref eigenvalue (rectangular linear assignment)."""
+    cost = np.abs(ref[:, None] - lam[None, :])
+    rows, cols = linear_sum_assignment(cost)
+    out = np.empty(len(ref), dtype=int)
+    out[rows] = cols
+    return out
+
+
+def validate(scene, name: str | None = None) -> Validation:
+    """Compare one scene's linear model with MuJoCo."""
+    from . import mjcf
+    from .exceptions import PinlinError
+    from .linearization import linearize
+    from .modal import modal
+
+    name = name or scene.name
+    try:
+        system = scene.system
+        model = linearize(scene)
+    except PinlinError as exc:
+        return Validation(name, "pinlin refuses", " ".join(str(exc).split()))
+    effects = system.scene.effects.in_play() + (["loops"] if scene.loops else [])
+    res = Validation(name, "pass", effects=effects, nv=system.nv)
+    modes = modal(model, method="general")
+    ref = modes.eigenvalues
+    res.pinlin_eigs = ref
+    loops = bool(system.constraints)
+    lam_max = float(np.abs(ref).max(initial=1.0))
+    dt = LOOP_DT if loops else min(1e-3, 0.01 / max(lam_max, 1e-9))
+    res.dt = dt
+    op = model.operating_point
+    try:
+        ms = mjcf.build(system, dt=dt)
+        res.sanity = sanity(ms, system, op.q)
+        lam, lam_log, A_c = _eigs_mujoco(ms, system, op, loops)
+        if not loops:
+            A_mj = mjcf.to_pinlin_coordinates(ms, system, op, A_c)
+            res.matrix_error = float(np.abs(A_mj - model.A).max() / np.abs(model.A).max())
+        matched = lam[_match(ref, lam)]
+        res.log_eigs = lam_log[_match(ref, lam_log)]
+        raw = matched
+        if loops:
+            ms_soft = mjcf.build(system, dt=dt, impedance=0.999)
+            lam_soft = _eigs_mujoco(ms_soft, system, op, loops)[0]
+            soft = lam_soft[_match(ref, lam_soft)]
+            d1, d2 = 0.999, mjcf.LOOP_IMPEDANCE
+            matched = raw + (raw - soft) * (1 - d2) / (d2 - d1)
+        res.mujoco_eigs = lam
+        used = set(_match(ref, lam).tolist())
+        res.set_aside = [lam[k] for k in range(len(lam)) if k not in used]
+    except mjcf.MujocoError as exc:
+        status = "MuJoCo refuses" if "refuses" in str(exc) or "cannot import" in str(exc) \
+            else ("not expressible" if "counterpart" in str(exc) else "FAIL")
+        res.status, res.reason = status, " ".join(str(exc).split())
+        return res
+    # Zero eigenvalues (Jordan blocks) move like sqrt of a perturbation of A, with constants
+    # set by the whole model: measure it on pinlin's own A perturbed at the size of the
+    # measured difference. Below that floor eigenvalues are compared in absolute terms.
+    a_max = float(np.abs(model.A).max())
+    d_abs = (max(res.matrix_error, 1e-12) if res.matrix_error is not None else MATRIX_TOL) * a_max
+    res.rigid_tol = 10 * _zero_sensitivity(model.A, ref, d_abs) + modes.rigid_tol
+    rigid = modes.rigid | (np.abs(ref) <= res.rigid_tol)
+    # First-order bound: |d lam_i| <= kappa_i |dA|_2 (kappa_i: eigenvalue condition number).
+    # Where MuJoCo's own finite-difference error cannot resolve 1e-6, the bound is the tolerance.
+    n = len(ref)
+    dA2 = (float(np.linalg.norm(A_mj - model.A, 2)) if res.matrix_error is not None
+           else MATRIX_TOL * a_max * n)
+    kappa = np.minimum(np.nan_to_num(modes.condition, nan=1e30, posinf=1e30), 1e30)
+    res.eig_tols = np.maximum(EIG_TOL, 10 * kappa * dA2 / np.maximum(np.abs(ref), 1e-30))
+    rel = np.abs(matched - ref) / np.where(rigid, 1.0, np.abs(ref))
+    rel_raw = np.abs(raw - ref) / np.where(rigid, 1.0, np.abs(ref))
+    res.eig_error = float(rel[~rigid].max(initial=0.0))
+    res.eig_error_raw = float(rel_raw[~rigid].max(initial=0.0))
+    res.conditioning_limited = int(np.sum(~rigid & (res.eig_tols > EIG_TOL)))
+    res.rigid_error = float(np.abs(matched[rigid] - ref[rigid]).max(initial=0.0))
+    res.table = [(ref[i], matched[i], res.log_eigs[i], rel[i],
+                  "rigid (abs.)" if rigid[i] and not modes.rigid[i] else modes.kind(i),
+                  res.rigid_tol if rigid[i] else res.eig_tols[i]) for i in range(len(ref))]
+    failures = []
+    if res.matrix_error is not None and res.matrix_error > MATRIX_TOL:
+        failures.append(f"matrix error {res.matrix_error:.1e} > {MATRIX_TOL:.0e}")
+    bad = ~rigid & (rel > res.eig_tols)
+    if bad.any():
+        k = int(np.argmax(np.where(bad, rel / res.eig_tols, 0.0)))
+        failures.append(f"eigenvalue {ref[k]:.6g}: error {rel[k]:.1e} > tolerance "
+                        f"{res.eig_tols[k]:.1e}")
+    if res.rigid_error > res.rigid_tol:
+        failures.append(f"rigid modes {res.rigid_error:.1e} > {res.rigid_tol:.1e}")
+    if failures:
+        res.status, res.reason = "FAIL", "; ".join(failures)
+    return res
+
+
+# ------------------------------------------------------------------------------------------------
+def write_report(res: Validation, folder: Path) -> None:
+    """``<name>.md`` and ``<name>.png`` (both eigenvalue sets in the complex plane)."""
+    import mujoco
+    import pinocchio as pin
+
+    lines = [f"# Validation of '{res.name}' against MuJoCo", "",
+             f"Verdict: **{res.status}**" + (f" — {res.reason}" if res.reason else ""), ""]
+    if res.pinlin_eigs is None:
+        (folder / f"{res.name}.md").write_text("\n".join(lines) + "\n")
+        return
+    lines += [
+        f"pin {pin.__version__}, MuJoCo {mujoco.__version__}, {platform.machine()}. "
+        f"Reproduce: `pinlin validate {res.name}`.",
+        "",
+        f"- Effects in play: {', '.join(res.effects) or 'none'}; everything else is off in "
+        "the MuJoCo scene (contacts, joint limits, friction loss, actuator clamps, equalities "
+        "other than the scene's loops and mimic couplings).",
+        f"- nv = {res.nv}; MuJoCo Euler, dt = {res.dt:.3g} s; "
+        + ("centered transition differences with eps = "
+           f"{EPS_LOOP:g}; loop equalities with time constant 2 dt, impedance 0.9999 and 0.999 "
+           "(extrapolated to 1)" if "loops" in res.effects else
+           f"centered transition differences at eps = {EPS_OPEN:g} and {2 * EPS_OPEN:g}, "
+           "Richardson-combined") + ".",
+        "- Sanity at q0 (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in res.sanity.items()),
+        "- Matrix error max |A_mj - A| / max |A|: "
+        + (f"{res.matrix_error:.2e} (tolerance {MATRIX_TOL:.0e})" if res.matrix_error is not None
+           else "not compared (loops: MuJoCo's state is the dependent coordinates)"),
+        f"- Largest relative eigenvalue error, non-rigid: {res.eig_error:.2e} (tolerance "
+        f"{EIG_TOL:.0e})" + (f"; raw at d = 0.9999, before extrapolation to d = 1: "
+                             f"{res.eig_error_raw:.2e}" if "loops" in res.effects
+                             or res.eig_error_raw != res.eig_error else ""),
+        f"- Rigid and near-rigid modes (|lam| <= {res.rigid_tol:.1e}): largest |lam_mj - lam| "
+        f"{res.rigid_error:.1e} (tolerance {res.rigid_tol:.1e})",
+        f"- Set aside: {len(res.set_aside)} MuJoCo soft-constraint eigenvalues"
+        + (f" (|lam| from {min(abs(x) for x in res.set_aside):.3g} to "
+           f"{max(abs(x) for x in res.set_aside):.3g} 1/s)" if res.set_aside else ""),
+        "",
+        f"- Eigenvalues whose tolerance is set by their condition number (MuJoCo's difference "
+        f"error times kappa exceeds 1e-6): {res.conditioning_limited}",
+        "",
+        "| # | pinlin eigenvalue [1/s] | MuJoCo, continuous A | error (rel.; abs. for rigid) "
+        "| tolerance | MuJoCo log(z)/dt (for reference) | kind |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for k, (a, b, c, e, kind, tol) in enumerate(res.table, start=1):
+        lines.append(f"| {k} | {a.real:+.9g} {a.imag:+.9g}j | {b.real:+.9g} {b.imag:+.9g}j | "
+                     f"{e:.1e} | {tol:.1e} | {c.real:+.7g} {c.imag:+.7g}j | {kind} |")
+    lines += ["", f"![eigenvalues]({res.name}.png)", ""]
+    (folder / f"{res.name}.md").write_text("\n".join(lines) + "\n")
+    _plot(res, folder / f"{res.name}.png")
+
+
+def _plot(res: Validation, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 4.5))
+    ours = np.asarray(res.pinlin_eigs)
+    mj = np.array([row[1] for row in res.table])
+    ax.plot(ours.real, ours.imag, "o", mfc="none", ms=9, label="pinlin")
+    ax.plot(mj.real, mj.imag, "x", ms=7, label="MuJoCo (matched)")
+    ax.set_xlabel("Re [1/s]")
+    ax.set_ylabel("Im [1/s]")
+    ax.set_title(f"{res.name}: {res.status}")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=70)
+    plt.close(fig)
+
+
+def write_summary(results: list[Validation], folder: Path, command: str) -> None:
+    lines = ["# Validation reports", "",
+             f"Produced by `{command}`. One line per system: pinlin's linear model against "
+             "MuJoCo (see [pinlin/validate.py](../../pinlin/validate.py) for the method and "
+             "tolerances). Other reports here: [accuracy_vs_time.md](accuracy_vs_time.md), "
+             "[bench_linearize.md](bench_linearize.md).", "",
+             "| system | verdict | matrix error | eigenvalue error | rigid | note |",
+             "|---|---|---|---|---|---|"]
+    for r in results:
+        mat = f"{r.matrix_error:.1e}" if r.matrix_error is not None else "-"
+        eig = f"{r.eig_error:.1e}" if np.isfinite(r.eig_error) else "-"
+        rig = f"{r.rigid_error:.1e}" if np.isfinite(r.rigid_error) else "-"
+        link = f"[{r.name}]({r.name}.md)"
+        lines.append(f"| {link} | {r.status} | {mat} | {eig} | {rig} | {r.reason[:160]} |")
+    counts = {s: sum(r.status == s for r in results) for s in sorted({r.status for r in results})}
+    lines += ["", "Totals: " + ", ".join(f"{k}: {v}" for k, v in counts.items()), ""]
+    (folder / "README.md").write_text("\n".join(lines))
+
+
+def targets(all_systems: bool, names: list[str]) -> list[str]:
+    if not all_systems:
+        return names
+    from .robots import loadable_robots
+    from .scene import bundled_scenes
+
+    robots = [n for n, reason in loadable_robots().items() if reason is None]
+    return sorted(bundled_scenes()) + robots
+
+
+def run(names: list[str], out_dir: str | Path = "validation/reports", progress: bool = True,
+        command: str = "pinlin validate", summary: bool = True) -> list[Validation]:
+    """Validate ``names`` (scene files, bundled scenes, robots), write reports; returns them."""
+    from .bench import Progress, check_scene
+    from .exceptions import PinlinError
+
+    folder = Path(out_dir)
+    folder.mkdir(parents=True, exist_ok=True)
+    bar = Progress(len(names), progress)
+    results = []
+    for target in names:
+        try:
+            scene, _ = check_scene(target)
+            res = validate(scene, name=Path(target).stem if target.endswith(".toml") else target)
+        except PinlinError as exc:
+            res = Validation(Path(target).stem, "pinlin refuses", " ".join(str(exc).split()))
+        results.append(res)
+        write_report(res, folder)
+        bar.step(f"{res.name}: {res.status}")
+    if summary:
+        write_summary(results, folder, command)
+    return results

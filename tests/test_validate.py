@@ -1,0 +1,118 @@
+"""MuJoCo validation: the exported scene holds exactly the scene's effects, and pinlin's models
+agree with MuJoCo's transition derivatives (an engine that shares none of pinlin's code)."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import URDF_DIR
+
+import pinlin
+from pinlin import mjcf
+from pinlin.bench import check_scene
+from pinlin.cli import main
+from pinlin.validate import MATRIX_TOL, run, sanity, validate
+
+
+@pytest.mark.parametrize("target", ["ur5", "solo12", "four_bar", "delta", "ur5_arm"])
+def test_systems_pass(target):
+    """Open chains (a floating base with a rotated base, a servoed arm with damping) and
+    closed loops (set-aside soft-constraint modes) pass at the stated tolerances."""
+    scene, _ = check_scene(target)
+    res = validate(scene, name=target)
+    assert res.passed, res.reason
+    if scene.loops:
+        assert res.matrix_error is None
+        assert len(res.set_aside) == len(res.mujoco_eigs) - len(res.pinlin_eigs) > 0
+        assert res.eig_error_raw > 10 * res.eig_error  # MuJoCo's constraint leak, removed
+    else:
+        assert res.matrix_error <= MATRIX_TOL
+    assert res.eig_error <= 1e-6
+
+
+def test_floating_base_rotation_is_not_the_identity():
+    scene, _ = check_scene("solo12")
+    q = scene.system.joints["root_joint"]
+    quat = pinlin.linearize(scene).operating_point.q[q.idx_q + 3:q.idx_q + 7]
+    assert abs(abs(quat[3]) - 1.0) > 1e-2
+
+
+def _export(scene, tmp_path, name):
+    out = tmp_path / f"{name}.xml"
+    ms = mjcf.build(scene.system)
+    out.write_text(ms.spec.to_xml())
+    return out.read_text(), ms
+
+
+def test_damping_changes_both_models_and_absent_effects_are_absent(tmp_path):
+    base = {"effects": {"gravity": True}}
+    plain = pinlin.Scene.from_robot("ur5", **base)
+    damped = pinlin.Scene.from_robot("ur5", effects={"gravity": True,
+                                                     "damping": {"elbow_joint": 3.0}})
+    xml_plain, ms_plain = _export(plain, tmp_path, "plain")
+    xml_damped, ms_damped = _export(damped, tmp_path, "damped")
+    # Only what the scene names: no damping, friction loss, limits, contacts or equalities.
+    joints = ET.fromstring(xml_plain).iter("joint")
+    for joint in joints:
+        assert "damping" not in joint.attrib and "frictionloss" not in joint.attrib
+        assert joint.get("limited", "false") == "false"
+    assert "<equality" not in xml_plain and "<geom" not in xml_plain
+    flags = ET.fromstring(xml_plain).find("option/flag").attrib
+    for flag in ("contact", "limit", "frictionloss", "equality"):
+        assert flags[flag] == "disable"
+    elbow_xml = next(j for j in ET.fromstring(xml_damped).iter("joint")
+                     if j.get("name") == "elbow_joint")
+    assert float(elbow_xml.get("damping").split()[0]) == 3.0
+    m_plain, m_damped = pinlin.linearize(plain), pinlin.linearize(damped)
+    A_plain = mjcf.continuous_state_matrix(ms_plain, plain.system, m_plain.operating_point)
+    A_damped = mjcf.continuous_state_matrix(ms_damped, damped.system, m_damped.operating_point)
+    nv = plain.system.nv
+    elbow = plain.system.joints["elbow_joint"].idx_v
+    assert m_plain.A[nv + elbow, nv + elbow] == 0.0
+    assert m_damped.A[nv + elbow, nv + elbow] < -1.0          # pinlin's model changed
+    assert abs(A_plain[nv + elbow, nv + elbow]) < 1e-8        # MuJoCo's did too
+    assert A_damped[nv + elbow, nv + elbow] < -1.0
+    np.testing.assert_allclose(A_damped, m_damped.A, atol=1e-7 * abs(m_damped.A).max())
+
+
+def test_export_mjcf_command(tmp_path, capfd):
+    out = tmp_path / "four_bar.xml"
+    assert main(["export-mjcf", str(URDF_DIR / "four_bar.toml"), "-o", str(out)]) == 0
+    model = mujoco.MjModel.from_xml_path(str(out))
+    assert model.nv == 3 and model.neq == 1 and model.eq_type[0] == mujoco.mjtEq.mjEQ_CONNECT
+    assert main(["export-mjcf", "four_bar", "-o", str(tmp_path / "x.txt")]) == 2
+    assert "expected an .xml file" in capfd.readouterr().err
+
+
+def test_sanity_mismatch_names_the_joint():
+    scene = pinlin.Scene.from_robot("ur5")
+    ms = mjcf.build(scene.system)
+    jid = mujoco.mj_name2id(ms.model, mujoco.mjtObj.mjOBJ_JOINT, "wrist_2_joint")
+    ms.model.dof_armature[ms.model.jnt_dofadr[jid]] = 0.5
+    with pytest.raises(mjcf.MujocoError, match="mass matrix.*'wrist_2_joint'"):
+        sanity(ms, scene.system, pinlin.linearize(scene).operating_point.q)
+
+
+def test_validate_command_writes_reports_and_fails_on_mismatch(tmp_path, monkeypatch, capfd):
+    assert main(["validate", "double_pendulum", "rotating_double_pendulum", "--out-dir",
+                 str(tmp_path), "--no-progress"]) == 0
+    summary = (tmp_path / "README.md").read_text()
+    assert "| [double_pendulum](double_pendulum.md) | pass |" in summary
+    assert "not expressible" in summary
+    assert (tmp_path / "double_pendulum.png").exists()
+    build = mjcf.build
+
+    def heavier(system, **kw):  # a MuJoCo scene that is not the scene: must be caught
+        ms = build(system, **kw)
+        ms.model.body_mass[int(np.argmax(ms.model.body_mass))] *= 1.01
+        return ms
+
+    monkeypatch.setattr(mjcf, "build", heavier)
+    results = run(["double_pendulum"], tmp_path, progress=False, summary=False)
+    assert results[0].failed and "differs from Pinocchio's" in results[0].reason
+    capfd.readouterr()
+    assert main(["validate", "double_pendulum", "--out-dir", str(tmp_path),
+                 "--no-progress"]) == 1
