@@ -145,6 +145,9 @@ def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
         result.curves[backend] = curve
     result.analytic_error = result.curves["fd5"].best()[1]
     try:
+        if system.constraints:
+            raise mjcf.MujocoError("MuJoCo's loop equalities act on the dependent coordinates "
+                                   "(a different, soft model); see pinlin validate")
         ms = mjcf.build(system)
     except mjcf.MujocoError as exc:
         result.note = str(exc)

@@ -86,10 +86,14 @@ def test_mujoco_transition_matrix_agrees_with_analytic(robot, base):
 
 
 def test_bench_writes_report_and_plots(tmp_path, capsys):
-    results = bench_run(["double_pendulum"], repeats=1, out_dir=tmp_path, progress=False)
+    results = bench_run(["double_pendulum", "four_bar"], repeats=1, out_dir=tmp_path,
+                        progress=False)
     text = (tmp_path / "accuracy_vs_time.md").read_text()
     assert "| double_pendulum (bundled scene) | 2 |" in text
     assert (tmp_path / "accuracy_vs_time" / "double_pendulum.png").stat().st_size > 1000
     curves = results[0].curves
     assert set(curves) == {"fd3", "fd5", "mujoco forward", "mujoco centered"}
     assert curves["fd5"].best()[1] < 1e-10
+    loop = results[1]
+    assert set(loop.curves) == {"fd3", "fd5"} and "dependent coordinates" in loop.note
+    assert loop.curves["fd5"].best()[1] < 1e-10
