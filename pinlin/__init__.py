@@ -8,6 +8,7 @@ Typical use::
     print(pinlin.modal(model))               # eigenvalues, wn, zeta, mode shapes
 """
 
+from .conditioning import AccuracyWarning
 from .exceptions import (
     AssemblyError,
     EquilibriumError,
@@ -31,8 +32,9 @@ from .system import System
 __version__ = "0.1.0"
 
 __all__ = [
-    "Effects",
+    "AccuracyWarning",
     "AssemblyError",
+    "Effects",
     "EquilibriumError",
     "LinearModel",
     "ModalAnalysis",

@@ -326,5 +326,32 @@ def _general(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     shapes = _normalize_shapes(vr[rows])
     names = tuple(model.state_names[k] for k in rows)
     names = tuple(s[2:] if s.startswith("q:") else s for s in names)
-    return ModalAnalysis(lam, shapes, names, wn, zeta, rigid, tol, "general", model,
-                         _right=vr, _left=vl)
+    result = ModalAnalysis(lam, shapes, names, wn, zeta, rigid, tol, "general", model,
+                           _right=vr, _left=vl)
+    _warn_ill_conditioned_eigenvalues(result)
+    return result
+
+
+#: modal warns when rounding in A alone may move an eigenvalue by more than this (relative).
+EIGENVALUE_RISK = 1e-6
+
+
+def _warn_ill_conditioned_eigenvalues(result: ModalAnalysis) -> None:
+    """AccuracyWarning when rounding in A (eps |A|) can move a non-rigid eigenvalue by more
+    than EIGENVALUE_RISK of itself: kappa eps max|A| / |lam| > 1e-6."""
+    import warnings
+
+    from .conditioning import AccuracyWarning
+
+    ok = ~result.rigid
+    if not ok.any():
+        return
+    kappa = result.condition[ok]
+    risk = kappa * np.finfo(float).eps * np.abs(result.model.A).max() / result.wn[ok]
+    worst = int(np.argmax(risk))
+    if risk[worst] > EIGENVALUE_RISK:
+        lam = result.eigenvalues[ok][worst]
+        warnings.warn(AccuracyWarning(
+            f"model '{result.model.name}': eigenvalue {lam:.6g} has condition number "
+            f"{kappa[worst]:.2e}; rounding in A alone may move it by {risk[worst]:.1e} "
+            "(relative)", float(kappa[worst])), stacklevel=4)

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..assembly import projection
+from ..conditioning import warn_if_ill_conditioned
 from ..derivatives import error_estimate, second_order_terms
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import PinlinError
@@ -112,6 +113,9 @@ def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarr
 
 def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, backend: str,
           **extra) -> dict:
+    warn_if_ill_conditioned("dependent-coordinate block of the loop Jacobian (near a singular "
+                            "position)", cp.partition.condition, system.scene.name, 1e8,
+                            stacklevel=5)
     info = {
         "formulation": formulation,
         "derivatives": backend,
@@ -122,7 +126,7 @@ def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, ba
         "independent": [system.coordinate_names[i] for i in cp.partition.independent],
         "constraint_rows": [system.constraints.row_names[i] for i in cp.partition.rows],
         "dropped_rows": list(cp.partition.dropped),
-        "constraint_condition": cp.partition.condition,
+        "condition": {"constraint_jacobian": cp.partition.condition},
     }
     info.update(extra)
     return info
@@ -167,6 +171,9 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     Mz = 0.5 * (Mz + Mz.T)
     Bz = R.T @ _input_matrix(system, terms)
     A, B = first_order(Mz, Cz, Kz, Bz)
+    mass_condition = float(np.linalg.cond(Mz, 1)) if Mz.size else 1.0
+    warn_if_ill_conditioned("reduced mass matrix", mass_condition, system.scene.name,
+                            stacklevel=5)
     alt = _alt(terms)
     A_alt = None if alt is None else first_order(Mz, R.T @ alt[1] @ R, R.T @ alt[0] @ R, Bz)[0]
     if basis == "partitioned":
@@ -184,6 +191,7 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     info = _info(system, op, cp, "independent", terms.backend, basis=basis,
                  velocity_terms=bool(np.any(Cz)), R=R.tolist(),
                  **_numeric_info(terms, A, A_alt))
+    info["condition"]["mass_matrix"] = mass_condition
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], B.shape[1])),
                        state_names=states, input_names=system.input_names,
                        output_names=out_names, M=Mz, C_damp=Cz, K=Kz, Bu=Bz,
