@@ -65,7 +65,8 @@ def independent_rows(jac: np.ndarray, names: tuple[str, ...], source, loops) -> 
     return keep
 
 
-def partition(system, q: np.ndarray, jac: np.ndarray | None = None) -> Partition:
+def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool = True
+              ) -> Partition:
     """Independent rows and coordinates at ``q`` (the scene's ``independent`` or a choice).
 
     pinlin's choice: dependent coordinates are the pivots of a column-pivoted QR of the
@@ -74,7 +75,8 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None) -> Partition
 
     Raises:
         SceneError: the scene's ``independent`` list has the wrong size, names an unknown joint,
-            or its coordinates cannot parametrize the mechanism at ``q`` (Phi_d singular).
+            or its coordinates cannot parametrize the mechanism at ``q`` (Phi_d singular;
+            checked when ``check``, i.e. at an assembled configuration).
     """
     cons = system.constraints
     src = system.scene.source
@@ -105,7 +107,7 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None) -> Partition
         chosen = True
     dependent = np.setdiff1d(np.arange(nv), independent)
     cond = float(np.linalg.cond(G[:, dependent])) if m else 1.0
-    if not np.isfinite(cond) or cond > 1e12:
+    if check and (not np.isfinite(cond) or cond > 1e12):
         names_z = ", ".join(system.coordinate_names[i] for i in independent)
         raise SceneError(src, "operating_point.independent",
                          f"coordinates [{names_z}] cannot parametrize the mechanism at this "

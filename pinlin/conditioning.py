@@ -8,7 +8,8 @@ condition number cond. pinlin records the estimates it can get cheaply in
 - ``mass_matrix``: 1-norm condition of the (reduced) mass matrix (mass or inertia ratios along a
   chain, near-massless bodies);
 - ``constraint_jacobian``: 2-norm condition of the dependent-coordinate block Phi_d of the
-  loop Jacobian (a mechanism near a toggle or singular position: R ill-conditioned).
+  loop Jacobian (a mechanism near a toggle or singular position: R ill-conditioned); warned
+  above 1e6, since near a fold it grows only like 1 / sqrt(distance to the fold).
 
 ``pinlin.modal`` warns the same way when an eigenvalue's condition number kappa times the
 rounding level of A exceeds 1e-8 of the eigenvalue.

@@ -72,7 +72,7 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     spec = system.scene.operating_point
     cons = system.constraints
     notes: list[str] = []
-    part = partition(system, q_guess)
+    part = partition(system, q_guess, check=False)  # conditioning is judged once assembled
     q0 = assemble(system, q_guess, part.independent) if cons else q_guess
     if spec.solve == "positions":
         u0 = input_vector(system, spec.u)

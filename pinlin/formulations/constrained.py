@@ -114,7 +114,7 @@ def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarr
 def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, backend: str,
           **extra) -> dict:
     warn_if_ill_conditioned("dependent-coordinate block of the loop Jacobian (near a singular "
-                            "position)", cp.partition.condition, system.scene.name, 1e8,
+                            "position)", cp.partition.condition, system.scene.name, 1e6,
                             stacklevel=5)
     info = {
         "formulation": formulation,
