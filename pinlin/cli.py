@@ -1,5 +1,5 @@
 """Command-line interface: ``pinlin linearize``, ``pinlin validate``, ``pinlin export-mjcf``,
-``pinlin bench``, ``pinlin robots``.
+``pinlin bench``, ``pinlin graph``, ``pinlin robots``.
 
 Bad input never produces a traceback: the error goes to stderr as one line and the exit status
 is 2.
@@ -182,6 +182,31 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_graph(args: argparse.Namespace) -> int:
+    from .graph import Graph
+
+    graph = Graph.load(args.file)
+    tree = graph.normal_tree(combine=not args.no_combine)
+    model = graph.linearize(combine=not args.no_combine, standard_form=args.standard_form)
+    print(f"graph '{graph.name}' ({graph.domain}): {len(graph.branches)} branches, inputs "
+          f"{', '.join(model.input_names) or 'none'}")
+    print(tree.describe())
+    if "operating_point" in model.info:
+        op = model.info["operating_point"]
+        print("operating point: " + ", ".join(f"{k} = {v:.6g}" for k, v in
+                                              {**op["x0"], **op["u0"]}.items()))
+    if args.standard_form and graph.linearize(combine=not args.no_combine).E is not None:
+        print("standard form: x' = x - E u (eqs. 90-93)")
+    with np.printoptions(precision=6, suppress=False, linewidth=120):
+        print(f"states: {', '.join(model.state_names)}")
+        print(f"outputs: {', '.join(model.output_names)}")
+        for key in ("A", "B", "E", "C", "D", "F"):
+            value = getattr(model, key)
+            if value is not None:
+                print(f"{key} =\n{value}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .derivatives import BACKENDS
     from .formulations import BASES, FORMULATIONS, PENALTY_DEFAULTS
@@ -234,6 +259,14 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("-o", "--output", required=True, metavar="FILE.xml")
     exp.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default 1e-3)")
     exp.set_defaults(func=_cmd_export_mjcf)
+    gra = sub.add_parser("graph", help="state equations of a linear graph (Rowell)")
+    gra.add_argument("file", metavar="FILE.toml")
+    gra.add_argument("--standard-form", action="store_true",
+                     help="remove input-derivative terms: x' = x - E u")
+    gra.add_argument("--no-combine", action="store_true",
+                     help="keep A-type elements in series and T-type in parallel (report the "
+                          "excess states instead of combining them)")
+    gra.set_defaults(func=_cmd_graph)
     rob = sub.add_parser("robots", help="list the example-robot-data robots that load")
     rob.set_defaults(func=_cmd_robots)
     return parser
@@ -251,6 +284,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = " ".join(str(exc).split())
         print(f"pinlin: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # output piped into head & co.: stop quietly
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":

@@ -158,16 +158,16 @@ class LinearModel:
     def standard_form(self) -> LinearModel:
         """Remove the input-derivative terms with x' = x - E u (Rowell, eqs. 90-93).
 
-        Returns the model in the new state x' with B' = B + A E and D' = D + C E; F must be
-        absent (a direct feed-through of u' has no standard form). Returns self when E is None.
+        Returns the model in the new state x' with B' = B + A E and D' = D + C E; an output
+        feed-through of u' (F) stays, y = C x' + D' u + F u' (eq. 93). Returns self when E is
+        None.
         """
         if self.E is None or not np.any(self.E):
             return self
-        if self.F is not None and np.any(self.F):
-            raise PinlinError(f"model '{self.name}': F u' has no standard form")
+        F = self.F if self.F is not None and np.any(self.F) else None
         return LinearModel(self.A, self.B + self.A @ self.E, self.C, self.D + self.C @ self.E,
                            tuple(f"{s}'" for s in self.state_names), self.input_names,
-                           self.output_names, name=self.name,
+                           self.output_names, F=F, name=self.name,
                            info={**self.info, "standard_form": "x' = x - E u"})
 
     def to_control(self):
@@ -179,6 +179,9 @@ class LinearModel:
             raise PinlinError("python-control is not installed: pip install 'pinlin[control]'") \
                 from None
         model = self.standard_form()
+        if model.F is not None and np.any(model.F):
+            raise PinlinError(f"model '{self.name}': outputs with an input-derivative term "
+                              "(F u') have no python-control StateSpace")
         return control.ss(model.A, model.B, model.C, model.D, name=self.name or None,
                           states=list(model.state_names), inputs=list(model.input_names),
                           outputs=list(model.output_names))

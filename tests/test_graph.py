@@ -1,0 +1,335 @@
+"""Linear graphs (Rowell): every worked example of the handout from validation/graphs/.
+
+Two independent references: (1) the expected matrices derived by hand in each test (the
+handout's printed results carry misprints, noted where they occur); (2) the full set of element
+and constraint equations (KCL at every node, v = e_from - e_to, elemental laws in s) solved at
+complex frequencies s and compared with C (sI - A)^-1 (B + sE) + D + sF.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pinlin.cli import main
+from pinlin.graph import Graph, GraphError
+
+GRAPHS = Path(__file__).resolve().parent.parent / "validation" / "graphs"
+LINEAR = ["rc_lr_parallel", "mass_spring", "mass_spring_damper", "rotational", "series_rlc",
+          "fluid", "thermal", "lead_lag", "two_springs", "matrix_method"]
+S_POINTS = (0.7 + 1.3j, 3.1j, -0.2 + 0.05j)
+
+
+def full_solution(graph: Graph, s: complex, outputs: list[str]) -> np.ndarray:
+    """Outputs per unit input (columns) from all branch equations at frequency s.
+
+    Unknowns: node potentials (reference: the first node of the first branch's 'to') and every
+    branch through variable. Equations: KCL at the other nodes; one elemental law per branch
+    in terms of v = e_from - e_to: A: f = value s v; T: v = value s f; D: v = value f;
+    across source: v = U; through source: f = U.
+    """
+    nodes = []
+    for b in graph.branches:
+        for n in (b.from_, b.to):
+            if n not in nodes:
+                nodes.append(n)
+    ref = graph.branches[0].to
+    free = [n for n in nodes if n != ref]
+    ne, nb = len(free), len(graph.branches)
+    sources = [b.name for b in graph.branches if b.is_source]
+    cols = []
+    for src in sources:
+        Mtx = np.zeros((ne + nb, ne + nb), dtype=complex)
+        rhs = np.zeros(ne + nb, dtype=complex)
+        for j, b in enumerate(graph.branches):
+            f_col = ne + j
+            for n, sign in ((b.from_, -1.0), (b.to, 1.0)):   # flow leaves 'from', enters 'to'
+                if n != ref:
+                    Mtx[free.index(n), f_col] += sign
+            row = ne + j
+            v = np.zeros(ne + nb, dtype=complex)
+            if b.from_ != ref:
+                v[free.index(b.from_)] += 1.0
+            if b.to != ref:
+                v[free.index(b.to)] -= 1.0
+            f = np.zeros(ne + nb, dtype=complex)
+            f[f_col] = 1.0
+            if b.type == "A":
+                Mtx[row] = f - b.value * s * v
+            elif b.type == "T":
+                Mtx[row] = v - b.value * s * f
+            elif b.type == "D":
+                Mtx[row] = v - b.value * f
+            elif b.type == "across_source":
+                Mtx[row], rhs[row] = v, 1.0 if b.name == src else 0.0
+            else:
+                Mtx[row], rhs[row] = f, 1.0 if b.name == src else 0.0
+        z = np.linalg.solve(Mtx, rhs)
+        out = []
+        for var in outputs:
+            kind, _, name = var.partition(":")
+            j = next(i for i, b in enumerate(graph.branches) if b.name == name)
+            b = graph.branches[j]
+            if kind == "f":
+                out.append(z[ne + j])
+            else:
+                ef = z[free.index(b.from_)] if b.from_ != ref else 0.0
+                et = z[free.index(b.to)] if b.to != ref else 0.0
+                out.append(ef - et)
+        cols.append(out)
+    return np.array(cols).T
+
+
+def model_response(model, s: complex) -> np.ndarray:
+    n = model.n_states
+    E = model.E if model.E is not None else np.zeros_like(model.B)
+    F = model.F if model.F is not None else np.zeros_like(model.D)
+    X = np.linalg.solve(s * np.eye(n) - model.A, model.B + s * E)
+    return model.C @ X + model.D + s * F
+
+
+@pytest.mark.parametrize("name", LINEAR)
+def test_state_equations_match_the_full_equations_at_complex_s(name):
+    graph = Graph.load(GRAPHS / f"{name}.toml")
+    model = graph.linearize()
+    for s in S_POINTS:
+        ref = full_solution(graph, s, list(model.output_names))
+        got = model_response(model, s)
+        np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("name", LINEAR)
+def test_standard_form_has_the_same_response(name):
+    graph = Graph.load(GRAPHS / f"{name}.toml")
+    model = graph.linearize(standard_form=True)
+    assert model.E is None or not np.any(model.E)
+    for s in S_POINTS:
+        ref = full_solution(graph, s, list(model.output_names))
+        np.testing.assert_allclose(model_response(model, s), ref, rtol=1e-10,
+                                   atol=1e-12 * np.abs(ref).max())
+
+
+def _m(name):
+    return Graph.load(GRAPHS / f"{name}.toml").linearize()
+
+
+def test_rc_lr_parallel_eq_11_and_16():
+    R, C, L = 2.0, 0.5, 0.25
+    m = _m("rc_lr_parallel")
+    assert m.state_names == ("v:C", "f:L")
+    np.testing.assert_allclose(m.A, [[-1 / (R * C), -1 / C], [1 / L, 0]])
+    np.testing.assert_allclose(m.B, [[1 / (R * C)], [0]])
+    np.testing.assert_allclose(m.C, [[-1 / R, 0], [-1, 0], [1, 0], [-1 / R, -1]])
+    np.testing.assert_allclose(m.D, [[1 / R], [1], [0], [1 / R]])
+
+
+def test_mechanical_examples():
+    m = _m("mass_spring")                       # eq. 23
+    np.testing.assert_allclose(m.A, [[0, -1 / 2.0], [40.0, 0]])
+    m = _m("mass_spring_damper")                # eq. 35 with K = K1 + K2
+    assert m.state_names == ("v:m", "f:K1+K2")
+    np.testing.assert_allclose(m.A, [[-5.0 / 2.0, -1 / 2.0], [100.0, 0]])
+    np.testing.assert_allclose(m.C[1:], [[0, 0.4], [0, 0.6]])   # K1, K2 share the force
+
+
+def test_rotational_example_with_the_printed_swap_corrected():
+    """Omega_J' = (-(B1 + B2) Omega_J + B1 Omega_s) / J. The handout prints B2 Omega_s: its
+    elemental equations swap B1 and B2 against its own compatibility equations."""
+    J, B1, B2 = 0.5, 2.0, 0.5
+    m = _m("rotational")
+    np.testing.assert_allclose(m.A, [[-(B1 + B2) / J]])
+    np.testing.assert_allclose(m.B, [[B1 / J]])
+
+
+def test_series_rlc_eq_52_and_56():
+    R, C, L = 3.0, 0.2, 0.5
+    m = _m("series_rlc")
+    np.testing.assert_allclose(m.A, [[0, 1 / C], [-1 / L, -R / L]])
+    np.testing.assert_allclose(m.B, [[0], [1 / L]])
+    np.testing.assert_allclose(m.C, [[-1, -R], [0, 1], [1, 0]])
+    np.testing.assert_allclose(m.D, [[1], [0], [0]])
+
+
+def test_fluid_eq_66():
+    Rp, Ip, C, Rf = 2e6, 5e5, 1e-6, 4e6
+    m = _m("fluid")
+    assert m.state_names == ("f:Ip", "v:C")   # file order; eq. 66 lists (P_C, Q_Ip)
+    np.testing.assert_allclose(m.A, [[-Rp / Ip, -1 / Ip], [1 / C, -1 / (Rf * C)]])
+    np.testing.assert_allclose(m.B, [[1 / Ip], [0]])
+
+
+def test_thermal_eq_75():
+    C, R1, R2 = 400.0, 0.1, 0.5
+    m = _m("thermal")
+    np.testing.assert_allclose(m.A, [[-1 / (C * (R1 + R2))]])
+    np.testing.assert_allclose(m.B, [[R2 / (C * (R1 + R2))]])
+
+
+def test_lead_lag_with_input_derivative_eq_87_89():
+    R1, R2, C1, C2 = 1e5, 2e4, 1e-6, 2e-6
+    m = _m("lead_lag")
+    assert m.state_names == ("v:C2",)
+    a = -(R1 + R2) / (R1 * R2 * (C1 + C2))
+    np.testing.assert_allclose(m.A, [[a]])
+    np.testing.assert_allclose(m.B, [[1 / (R1 * (C1 + C2))]])
+    np.testing.assert_allclose(m.E, [[C1 / (C1 + C2)]])
+    np.testing.assert_allclose(m.C, [[(R1 + R2) * C1 / (R1 * R2 * (C1 + C2))]])
+    np.testing.assert_allclose(m.D, [[-C1 / (R1 * (C1 + C2))]])
+    np.testing.assert_allclose(m.F, [[C1 * C2 / (C1 + C2)]])
+
+
+def test_two_springs_eq_104_and_standard_form_107_108():
+    m_, B2, B1, K2, K1 = 3.0, 4.0, 10.0, 200.0, 100.0
+    model = _m("two_springs")
+    np.testing.assert_allclose(model.A, [[-B2 / m_, 0], [0, -K1 * K2 / (B1 * (K1 + K2))]])
+    np.testing.assert_allclose(model.B, [[1 / m_], [0]])
+    np.testing.assert_allclose(model.E, [[0], [K1 / (K1 + K2)]])
+    np.testing.assert_allclose(model.C, [[0, 1 / B1]])
+    std = model.standard_form()
+    # eq. 107 prints K1^2 K2 / (B1 (K1 + K2)^2) with a plus sign; B' = B + A E gives minus.
+    np.testing.assert_allclose(std.B, [[1 / m_], [-K1**2 * K2 / (B1 * (K1 + K2) ** 2)]])
+    np.testing.assert_allclose(std.D, [[K1 / (B1 * (K1 + K2))]])   # eq. 108
+
+
+def test_matrix_method_eq_127_derived():
+    """Eq. 127 as printed has wrong signs and entries; derived from eqs. 117-120:
+    v_R2 = (R2 v_C - R1 R2 i_L) / (R1 + R2), i_R1 = (v_C - v_R2) / R1."""
+    C, R1, R2, L = 0.01, 10.0, 5.0, 0.2
+    m = _m("matrix_method")
+    S = R1 + R2
+    np.testing.assert_allclose(m.A, [[-1 / (S * C), -R2 / (S * C)],
+                                     [R2 / (S * L), -R1 * R2 / (S * L)]])
+    np.testing.assert_allclose(m.B, [[1 / C], [0]])
+
+
+def test_excess_storage_reported_when_not_combined():
+    graph = Graph.load(GRAPHS / "mass_spring_damper.toml")
+    tree = graph.normal_tree(combine=False)
+    assert tree.excess == [["K1", "K2"]] and tree.order == 3
+    combined = graph.normal_tree()
+    assert combined.combined == {"K1+K2": ["K1", "K2"]} and combined.order == 2
+    loose = graph.linearize(combine=False)
+    for s in S_POINTS:   # same input-output behaviour, one uncontrollable state more
+        np.testing.assert_allclose(model_response(loose, s)[:1],
+                                   model_response(graph.linearize(), s)[:1], rtol=1e-10)
+
+
+def test_dependent_storage_reported():
+    tree = Graph.load(GRAPHS / "two_springs.toml").normal_tree()
+    assert tree.dependent == ["K2"] and tree.states == ["v:m", "f:K1"]
+    tree = Graph.load(GRAPHS / "lead_lag.toml").normal_tree()
+    assert tree.dependent == ["C1"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Nonlinear examples (section 6) linearized (section 7)
+
+
+def test_car_drag():
+    m, Fp, Fr, cd = 1200.0, 500.0, 100.0, 0.4
+    model = Graph.load(GRAPHS / "car_drag.toml").linearize()
+    v0 = math.sqrt((Fp - Fr) / cd)
+    assert model.info["operating_point"]["x0"]["v:m"] == pytest.approx(v0, rel=1e-10)
+    np.testing.assert_allclose(model.A, [[-2 * cd * v0 / m]], rtol=1e-9)
+    # d v'/d Fr = -1/m (the handout prints +1/m: the road resistance opposes the motion)
+    np.testing.assert_allclose(model.B, [[1 / m, -1 / m]], rtol=1e-12)
+
+
+def test_pendulum_torque_instrument():
+    J, B, mgl, T0 = 0.05, 0.02, 0.981, 0.4
+    model = Graph.load(GRAPHS / "pendulum_torque.toml").linearize()
+    op = model.info["operating_point"]["x0"]
+    assert abs(op["v:J"]) < 1e-9 and op["f:K"] == pytest.approx(T0, rel=1e-9)
+    k = mgl * math.cos(math.asin(T0 / mgl))      # eq. 149 at the equilibrium
+    np.testing.assert_allclose(model.A, [[-B / J, -1 / J], [k, 0]], rtol=1e-8)
+
+
+def test_tank_with_orifices():
+    K1, K2, Inert, Qs = 1e-5, 2e-5, 1e6, 0.002
+    c = (2e-5, 5e-10, 1e-15)
+    model = Graph.load(GRAPHS / "tank_orifices.toml").linearize()
+    P0 = (Qs / (K1 + K2)) ** 2                    # Qs = (K1 + K2) sqrt(P0) at equilibrium
+    Q0 = K2 * math.sqrt(P0)
+    Cp = c[0] + 2 * c[1] * P0 + 3 * c[2] * P0**2  # dV/dP
+    op = model.info["operating_point"]["x0"]
+    assert op["v:C"] == pytest.approx(P0, rel=1e-9) and op["f:I"] == pytest.approx(Q0, rel=1e-9)
+    np.testing.assert_allclose(model.A, [[-K1 / (2 * math.sqrt(P0)) / Cp, -1 / Cp],
+                                         [1 / Inert, -2 * Q0 / (K2**2 * Inert)]], rtol=1e-7)
+
+
+def test_nonlinear_rate_jacobian_matches_the_linear_model():
+    """A of the linearized graph equals central differences of f(x, u) (eqs. 183-184)."""
+    from pinlin.graph import NonlinearGraph
+
+    graph = Graph.load(GRAPHS / "tank_orifices.toml")
+    model = graph.linearize()
+    x0 = np.array(list(model.info["operating_point"]["x0"].values()))
+    u0 = np.array([0.002])
+    nl = NonlinearGraph(graph)
+    J = np.zeros((2, 2))
+    for k in range(2):
+        h = 1e-6 * max(1.0, abs(x0[k]))
+        e = np.zeros(2)
+        e[k] = h
+        J[:, k] = (nl.rate(x0 + e, u0) - nl.rate(x0 - e, u0)) / (2 * h)
+    np.testing.assert_allclose(J, model.A, rtol=1e-5)
+
+
+def test_python_api_nonlinear_element():
+    g = Graph("tank", "fluid")
+    g.add_branch("Qs", "through_source", "g", "1", input=1.0)
+    g.add_branch("C", "A", "1", "g", 2.0)
+    g.add_branch("R", "D", "1", "g", relation=lambda p: 0.5 * math.sqrt(abs(p))
+                 * math.copysign(1.0, p))
+    model = g.linearize(x0=[1.0])
+    assert model.info["operating_point"]["x0"]["v:C"] == pytest.approx(4.0)
+    np.testing.assert_allclose(model.A, [[-0.5 / (2 * 2.0) / 2.0]], rtol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad graphs
+
+
+BAD = {
+    "disconnected": ("[[branches]]\nname = 'C'\ntype = 'A'\nfrom = 'a'\nto = 'g'\nvalue = 1.0\n"
+                     "[[branches]]\nname = 'R'\ntype = 'D'\nfrom = 'b'\nto = 'c'\nvalue = 1.0\n",
+                     "not connected"),
+    "source_loop": ("[[branches]]\nname = 'V1'\ntype = 'across_source'\nfrom = 'a'\nto = 'g'\n"
+                    "[[branches]]\nname = 'V2'\ntype = 'across_source'\nfrom = 'a'\nto = 'g'\n",
+                    "across-variable sources form a loop"),
+    "through_cutset": ("[[branches]]\nname = 'I1'\ntype = 'through_source'\nfrom = 'g'\n"
+                       "to = 'a'\n[[branches]]\nname = 'C'\ntype = 'A'\nfrom = 'b'\nto = 'g'\n"
+                       "value = 1.0\n[[branches]]\nname = 'I2'\ntype = 'through_source'\n"
+                       "from = 'a'\nto = 'b'\n", "through-variable sources form a cut-set"),
+    "unknown_type": ("[[branches]]\nname = 'X'\ntype = 'Q'\nfrom = 'a'\nto = 'g'\n",
+                     "unknown element type 'Q'"),
+    "missing_value": ("[[branches]]\nname = 'C'\ntype = 'A'\nfrom = 'a'\nto = 'g'\n",
+                      "needs a value > 0"),
+    "negative_value": ("[[branches]]\nname = 'C'\ntype = 'A'\nfrom = 'a'\nto = 'g'\n"
+                       "value = -1.0\n", "expected a finite number > 0"),
+    "unknown_output": ("[[branches]]\nname = 'C'\ntype = 'A'\nfrom = 'a'\nto = 'g'\n"
+                       "value = 1.0\n[outputs]\nvariables = ['v:R']\n", "no branch named 'R'"),
+    "malformed": ("[[branches]\n", "malformed TOML"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_graphs(case, tmp_path, capfd):
+    text, fragment = BAD[case]
+    path = tmp_path / f"{case}.toml"
+    path.write_text(text)
+    with pytest.raises(GraphError, match=fragment):
+        Graph.load(path).linearize()
+    assert main(["graph", str(path)]) == 2
+    err = capfd.readouterr().err
+    assert err.count("\n") == 1 and fragment in err
+
+
+def test_graph_command_prints_tree_and_matrices(capfd):
+    assert main(["graph", str(GRAPHS / "lead_lag.toml"), "--standard-form"]) == 0
+    out = capfd.readouterr().out
+    assert "normal tree: Vs, C2" in out and "dependent energy storage: C1" in out
+    assert "standard form" in out and "E =" not in out
