@@ -5,8 +5,9 @@ condition number cond. pinlin records the estimates it can get cheaply in
 ``model.info["condition"]`` and warns (:class:`AccuracyWarning`, carrying the estimate) above
 :data:`WARN_CONDITION`:
 
-- ``mass_matrix``: 1-norm condition of the (reduced) mass matrix (mass or inertia ratios along a
-  chain, near-massless bodies);
+- ``mass_matrix``: condition of the (reduced) mass matrix (mass or inertia ratios along a
+  chain, near-massless bodies): tr(M) tr(M^-1) / n for open chains (within a factor n of
+  cond_2), the 1-norm condition for reduced mass matrices of mechanisms;
 - ``constraint_jacobian``: 2-norm condition of the dependent-coordinate block Phi_d of the
   loop Jacobian (a mechanism near a toggle or singular position: R ill-conditioned); warned
   above 1e6, since near a fold it grows only like 1 / sqrt(distance to the fold).
@@ -33,11 +34,14 @@ class AccuracyWarning(UserWarning):
         self.condition = condition
 
 
-def norm1_condition(M: np.ndarray, Minv: np.ndarray) -> float:
-    """cond_1(M) = |M|_1 |M^-1|_1 from M and its inverse (no factorization)."""
-    if M.size == 0:
+def trace_condition(M: np.ndarray, Minv: np.ndarray) -> float:
+    """Estimate of cond_2 of a symmetric positive definite M from M and its inverse:
+    tr(M) tr(M^-1) / n, within a factor n of cond_2 (since cond_2 <= tr(M) tr(M^-1) <=
+    n^2 cond_2); two traces, no factorization."""
+    n = M.shape[0]
+    if n == 0:
         return 1.0
-    return float(np.abs(M).sum(axis=0).max() * np.abs(Minv).sum(axis=0).max())
+    return float(M.trace() * Minv.trace() / n)
 
 
 def warn_if_ill_conditioned(what: str, condition: float, name: str,

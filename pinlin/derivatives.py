@@ -115,14 +115,15 @@ def second_order_terms(system: System, op: OperatingPoint, backend: str = "analy
 
 
 def _analytic(system: System, op: OperatingPoint) -> SecondOrderTerms:
-    K, dtau_dv, M = system.rnea_derivatives(op.q, op.v, op.a)
+    with_v = velocity_terms(system, op)
+    K, dtau_dv, M = system.rnea_derivatives(op.q, op.v, op.a, with_v)
     if system.has_springs:
         # Springs act on 1-DoF joints, where d(difference)/d(dq) = 1.
         K.flat[::K.shape[0] + 1] += system.stiffness
     if op.lam is not None:
         K -= system.constraints.hessian(op.q, op.lam)
     C = None
-    if velocity_terms(system, op):
+    if with_v:
         C = dtau_dv
         C.flat[::C.shape[0] + 1] += system.damping
     return SecondOrderTerms(M, K, C, "analytic")

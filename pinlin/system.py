@@ -257,12 +257,14 @@ class System:
         return pin.rnea(self.kin_model, self.kin_data, self.kin_q(q), self.kin_v(v),
                         self._kin_a(a))[1:].copy()
 
-    def rnea_derivatives(self, q: np.ndarray, v: np.ndarray, a: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(d tau/d q, d tau/d v, M) of :meth:`rnea`, fresh arrays."""
+    def rnea_derivatives(self, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                         with_v: bool = True
+                         ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """(d tau/d q, d tau/d v, M) of :meth:`rnea`, fresh arrays (d tau/d v None unless
+        ``with_v``)."""
         if self.rotation is None:
             dq, dv, M = pin.computeRNEADerivatives(self.model, self.data, q, v, a)
-            return np.array(dq), np.array(dv), np.array(M)
+            return np.array(dq), (np.array(dv) if with_v else None), np.array(M)
         dq, dv, M = pin.computeRNEADerivatives(self.kin_model, self.kin_data, self.kin_q(q),
                                                self.kin_v(v), self._kin_a(a))
         return dq[1:, 1:].copy(), dv[1:, 1:].copy(), M[1:, 1:].copy()
@@ -272,6 +274,11 @@ class System:
         M = pin.crba(self.kin_model, self.kin_data, self.kin_q(q))[self.kin_columns,
                                                                    self.kin_columns]
         return np.triu(M) + np.triu(M, 1).T
+
+    @functools.cached_property
+    def effects_in_play(self) -> tuple[str, ...]:
+        """Names of the scene's effects present (fixed for a system)."""
+        return tuple(self.scene.effects.in_play())
 
     @functools.cached_property
     def state_output(self) -> tuple[np.ndarray, np.ndarray]:
@@ -290,7 +297,9 @@ class System:
         else:  # the spin coordinate is prescribed: invert the block of the other coordinates
             M = self.mass_matrix(q)
             Minv = np.linalg.inv(M) if np.all(np.isfinite(M)) else M
-        if not (np.isfinite(Minv.sum()) and Minv.diagonal().min(initial=1.0) > 0.0):
+        # A coordinate that moves no inertia makes its row of M^-1 inf or NaN, diagonal included.
+        diag = Minv.diagonal()
+        if diag.size and not (diag.min() > 0.0 and np.isfinite(diag.max())):
             self._raise_singular(q)
         return Minv
 

@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..arrays import read_only
-from ..conditioning import norm1_condition, warn_if_ill_conditioned
+from ..conditioning import trace_condition, warn_if_ill_conditioned
 from ..derivatives import error_estimate, second_order_terms
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
@@ -78,12 +78,12 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     B[nv:] = Minv[:, system.actuated] if terms.Bu is None else Minv @ terms.Bu
     C, D, out_names, y0 = output_matrices(system, op)
     op_with_y = op.with_outputs(y0)
-    condition = norm1_condition(terms.M, Minv)
+    condition = trace_condition(terms.M, Minv)
     warn_if_ill_conditioned("mass matrix", condition, system.scene.name)
     info = {
         "formulation": "independent",
         "derivatives": terms.backend,
-        "effects": system.scene.effects.in_play(),
+        "effects": list(system.effects_in_play),
         "velocity_terms": terms.C is not None,
         "base": "free" if system.base_joint else "fixed",
         "notes": list(op.notes),
