@@ -225,15 +225,21 @@ def penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega, estima
     return 0.5 * (Mp + Mp.T), Cp, Kp, terms
 
 
+def _penalty_setup(system, op, cp, derivatives, step, alpha, mu, omega, estimate_error):
+    """Checked (alpha, mu, Omega), the penalty matrices, the terms and the input matrix."""
+    alpha, mu, omega = penalty_parameters(alpha, mu, omega)
+    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega,
+                                         estimate_error)
+    return alpha, mu, omega, Mp, Cp, Kp, terms, _input_matrix(system, terms)
+
+
 def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
                       derivatives: str = "analytic", step=None, alpha: float | None = None,
                       mu: float | None = None, omega: float | None = None,
                       estimate_error: bool = True) -> LinearModel:
     """Dependent-coordinate model with the penalty formulation (9.1.2)."""
-    alpha, mu, omega = penalty_parameters(alpha, mu, omega)
-    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega,
-                                         estimate_error)
-    S = _input_matrix(system, terms)
+    alpha, mu, omega, Mp, Cp, Kp, terms, S = _penalty_setup(
+        system, op, cp, derivatives, step, alpha, mu, omega, estimate_error)
     C = terms.C if terms.C is not None else np.zeros_like(terms.M)
     A, B = penalty_first_order(terms.M, C, terms.K, cp.jacobian, S, alpha, mu, omega)
     alt = _alt(terms)
@@ -253,11 +259,9 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
                         mu: float | None = None, omega: float | None = None,
                         estimate_error: bool = True) -> LinearModel:
     """Canonical (momentum) model (9.1.3): state y = [p; q], eq. 9.53 solved for y'."""
-    alpha, mu, omega = penalty_parameters(alpha, mu, omega)
-    Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega,
-                                         estimate_error)
+    alpha, mu, omega, Mp, Cp, Kp, terms, S = _penalty_setup(
+        system, op, cp, derivatives, step, alpha, mu, omega, estimate_error)
     n = system.nv
-    S = _input_matrix(system, terms)
     eye, Z = np.eye(n), np.zeros((n, n))
 
     def state_matrix(Cp_: np.ndarray, Kp_: np.ndarray) -> tuple[np.ndarray, tuple]:
