@@ -44,11 +44,11 @@ class Partition:
     condition: float
 
 
-def independent_rows(jac: np.ndarray, names: tuple[str, ...], source, loops) -> np.ndarray:
+def independent_rows(jac: np.ndarray, loop_rows: list[range], source, loops) -> np.ndarray:
     """Rows of ``jac`` that are linearly independent (pivoted QR of jac^T), in order.
 
     Raises:
-        SceneError: a loop contributes no independent row at all.
+        SceneError: a loop (rows ``loop_rows[i]``) contributes no independent row at all.
     """
     if jac.shape[0] == 0:
         return np.zeros(0, dtype=int)
@@ -57,9 +57,9 @@ def independent_rows(jac: np.ndarray, names: tuple[str, ...], source, loops) -> 
     scale = diag[0] if diag.size else 0.0
     rank = int(np.sum(diag > RANK_TOL * max(scale, 1e-300)))
     keep = np.sort(piv[:rank])
-    for i, loop in enumerate(loops):
-        own = [k for k, n in enumerate(names) if n.startswith(f"{loop.name}.")]
-        if own and not np.isin(own, keep).any():
+    kept = set(keep.tolist())
+    for i, (loop, own) in enumerate(zip(loops, loop_rows, strict=True)):
+        if not kept.intersection(own):
             raise SceneError(source, f"loops[{i}]", f"loop '{loop.name}' adds no independent "
                                                     "constraint: every row repeats others")
     return keep
@@ -81,8 +81,9 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
     cons = system.constraints
     src = system.scene.source
     jac = cons.jacobian(q) if jac is None else jac
-    rows = independent_rows(jac, cons.row_names, src, system.scene.loops)
-    dropped = tuple(n for k, n in enumerate(cons.row_names) if k not in set(rows.tolist()))
+    rows = independent_rows(jac, cons.loop_rows, src, system.scene.loops)
+    kept = set(rows.tolist())
+    dropped = tuple(n for k, n in enumerate(cons.row_names) if k not in kept)
     G = jac[rows]
     nv, m = system.nv, len(rows)
     names = system.scene.operating_point.independent

@@ -7,11 +7,11 @@ Rows, in the world frame (the rotating frame when the scene spins):
 - mimic coupling: Phi = q_mimic - multiplier * q_joint - offset [rad or m] (1 row).
 
 Everything is in the tangent space: ``jacobian(q)`` is dPhi(q (+) dq)/d(dq) (m x nv) and
-``hessian(q, lam)`` is the symmetric Hessian of lam^T Phi(q (+) dq) at dq = 0, obtained exactly by
-polarizing the second time derivative along geodesics: with v' = 0,
-d^2/dt^2 Phi(q (+) t v) = v^T (Phi_qq) v is what Pinocchio's classical frame accelerations return
-(for a weld at an assembled configuration, the rotation rows add -omega1 x omega2, the second-order
-term of log(exp(a) exp(-b))). The constraint force the closure applies is Phi_q^T lam, with lam the
+``hessian(q, lam)`` is the symmetric Hessian of lam^T Phi(q (+) dq) at dq = 0, exact: along
+geodesics (v' = 0) d^2/dt^2 Phi(q (+) t v) = d/dt(Phi_q) v = v^T (Phi_qq) v, and Pinocchio's
+Jacobian time variation at v = e_j is dJ/dq_j (for a weld at an assembled configuration the
+rotation rows add -omega1 x omega2, the second-order term of log(exp(a) exp(-b))). The constraint
+force the closure applies is Phi_q^T lam, with lam the
 force [N] (and torque [N*m]) on frame1's body, expressed in the world frame.
 """
 
@@ -73,6 +73,8 @@ class ConstraintSet:
         self.system = system
         src = system.scene.source
         self._loops: list[tuple[str, int, int, int]] = []  # (type, fid1, fid2, first row)
+        #: Constraint rows of each loop, in scene order.
+        self.loop_rows: list[range] = []
         names: list[str] = []
         for i, loop in enumerate(system.scene.loops):
             fld = f"loops[{i}]"
@@ -83,6 +85,8 @@ class ConstraintSet:
                 raise SceneError(src, fld, f"frames '{loop.frame1}' and '{loop.frame2}' are on "
                                            "the same body: the loop constrains nothing")
             self._loops.append((loop.type, f1, f2, len(names)))
+            self.loop_rows.append(range(len(names), len(names) + (3 if loop.type == "point"
+                                                                  else 6)))
             axes = ("x", "y", "z") if loop.type == "point" else ("x", "y", "z", "rx", "ry", "rz")
             names.extend(f"{loop.name}.{a}" for a in axes)
         self._mimic_rows: list[tuple[int, int, float, float, bool, bool]] = []
@@ -147,44 +151,43 @@ class ConstraintSet:
     def hessian(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """sum_i lam_i Phi_i,qq (nv x nv, symmetric) at an assembled configuration q.
 
-        Mimic rows are linear in the joint coordinates and contribute nothing. Loop rows are
-        polarized over the coordinates that move either frame of a loop (the support).
+        Mimic rows are linear in the joint coordinates and contribute nothing. For a loop row
+        the second time derivative along q (+) t v is d/dt(Phi_q) v, with d/dt(Phi_q) linear in
+        v: one ``computeJointJacobiansTimeVariation`` per coordinate j of the loops' support
+        gives the row j of the Hessian (d/dt(J) at v = e_j is dJ/dq_j), the weld rotation rows
+        adding -w1 x w2; the symmetric part is the Hessian (polarization identity).
         """
         sysm = self.system
         nv = sysm.nv
         out = np.zeros((nv, nv))
         if not self._loops or not np.any(lam[:self._loop_rows()]):
             return out
-        support = self._support
         kin, kd = sysm.kin_model, sysm.kin_data
         qk = sysm.kin_q(q)
-
-        def quad(v: np.ndarray) -> float:
-            pin.forwardKinematics(kin, kd, qk, sysm.kin_v(v, spin=False), np.zeros(kin.nv))
-            total = 0.0
-            for kind, f1, f2, row in self._loops:
-                a1 = pin.getFrameClassicalAcceleration(kin, kd, f1, LWA)
-                a2 = pin.getFrameClassicalAcceleration(kin, kd, f2, LWA)
-                total += lam[row:row + 3] @ (a1.linear - a2.linear)
-                if kind == "weld":
-                    w1 = pin.getFrameVelocity(kin, kd, f1, LWA).angular
-                    w2 = pin.getFrameVelocity(kin, kd, f2, LWA).angular
-                    total += lam[row + 3:row + 6] @ (a1.angular - a2.angular - np.cross(w1, w2))
-            return total
-
+        cols = sysm.kin_columns
+        pin.computeJointJacobians(kin, kd, qk)
+        pin.updateFramePlacements(kin, kd)
+        angular = {}  # world angular-velocity Jacobians of weld frames
+        for kind, f1, f2, _ in self._loops:
+            if kind == "weld":
+                for f in (f1, f2):
+                    angular[f] = pin.getFrameJacobian(kin, kd, f, LWA)[3:, cols]
         e = np.zeros(nv)
-        diag = {}
-        for j in support:
+        for j in self._support:
             e[j] = 1.0
-            diag[j] = quad(e)
+            pin.computeJointJacobiansTimeVariation(kin, kd, qk, sysm.kin_v(e, spin=False))
+            for kind, f1, f2, row in self._loops:
+                dJ1 = pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:, cols]
+                dJ2 = pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:, cols]
+                out[j] += lam[row:row + 3] @ (dJ1[:3] - dJ2[:3])
+                if kind == "weld":
+                    lr = lam[row + 3:row + 6]
+                    out[j] += lr @ (dJ1[3:] - dJ2[3:])
+                    # -w1 x w2 with w1 = J1 e_j, w2 = J2 e_k (and the swap, by symmetrization)
+                    w1 = angular[f1][:, j]
+                    out[j] -= lr @ np.cross(w1, angular[f2].T).T
             e[j] = 0.0
-            out[j, j] = diag[j]
-        for a, j in enumerate(support):
-            for k in support[a + 1:]:
-                e[j] = e[k] = 1.0
-                out[j, k] = out[k, j] = 0.5 * (quad(e) - diag[j] - diag[k])
-                e[j] = e[k] = 0.0
-        return out
+        return 0.5 * (out + out.T)
 
     # ----------------------------------------------------------------------------------------
     def _loop_rows(self) -> int:
