@@ -80,18 +80,16 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     jac = cons.jacobian(q0)
     part = partition(system, q0, jac)
     G = jac[part.rows]
-    f = system.static_force(q0)
-    if system.has_springs:
-        f -= system.spring_torque(q0)
+    f = _held_force(system, q0)
     S = system.input_matrix
     if spec.solve == "positions":
-        u0 = input_vector(system, spec.u)
         lam_k = np.linalg.lstsq(G.T, f - S @ u0, rcond=None)[0] if len(part.rows) else \
             np.zeros(0)
     else:
-        sol, *_ = np.linalg.lstsq(np.hstack([S, G.T]), f, rcond=None)
+        SG = np.hstack([S, G.T])
+        sol, *_ = np.linalg.lstsq(SG, f, rcond=None)
         u0, lam_k = sol[:S.shape[1]], sol[S.shape[1]:]
-        if np.linalg.matrix_rank(np.hstack([S, G.T])) < S.shape[1] + len(part.rows):
+        if np.linalg.matrix_rank(SG) < S.shape[1] + len(part.rows):
             notes.append("the inputs and constraint forces that hold q0 are not unique "
                          "(redundant actuation): the least-norm ones are reported")
     residual = f - S @ u0 - G.T @ lam_k
@@ -131,6 +129,15 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     return op, ConstrainedPoint(part, G)
 
 
+def _held_force(system, q: np.ndarray) -> np.ndarray:
+    """Generalized force the inputs and constraints must supply at rest: gravity (and
+    centrifugal) minus the springs [N*m or N]."""
+    f = system.static_force(q)
+    if system.has_springs:
+        f -= system.spring_torque(q)
+    return f
+
+
 def _passive_equilibrium(system, q: np.ndarray, part: Partition, u0: np.ndarray,
                          max_iter: int = 60) -> tuple[np.ndarray, Partition]:
     """Newton over z on the reduced static residual, re-assembling after every step."""
@@ -141,9 +148,7 @@ def _passive_equilibrium(system, q: np.ndarray, part: Partition, u0: np.ndarray,
         jac = cons.jacobian(qc)
         pc = partition(system, qc, jac)
         G = jac[pc.rows]
-        f = system.static_force(qc) - S @ u0
-        if system.has_springs:
-            f -= system.spring_torque(qc)
+        f = _held_force(system, qc) - S @ u0
         lam = np.zeros(cons.size)
         if len(pc.rows):
             lam[pc.rows] = np.linalg.lstsq(G.T, f, rcond=None)[0]
