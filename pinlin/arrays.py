@@ -8,5 +8,5 @@ import numpy as np
 def read_only(arr: np.ndarray) -> np.ndarray:
     """Mark ``arr`` read-only and return it. A LinearModel shares read-only arrays instead of
     copying them, so constant matrices (S, C = I) are built once per system."""
-    arr.flags.writeable = False
+    arr.setflags(write=False)
     return arr

@@ -21,7 +21,7 @@ Numerical backends perturb q on the manifold with ``pin.integrate`` and take M f
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -69,8 +69,7 @@ def resolve_steps(backend: str, step: float | Mapping[str, float] | None) -> dic
     return steps
 
 
-@dataclass(frozen=True)
-class SecondOrderTerms:
+class SecondOrderTerms(NamedTuple):
     """Second-order matrices at an operating point (nv x nv each).
 
     Attributes:

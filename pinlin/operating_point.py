@@ -53,10 +53,21 @@ class OperatingPoint:
     notes: tuple[str, ...] = field(default_factory=tuple)
     lam_names: tuple[str, ...] = ()
 
+    @classmethod
+    def trusted(cls, **fields: Any) -> OperatingPoint:
+        """A point from code that built every field itself (all fields given): skips the
+        frozen dataclass's per-field ``__setattr__``, a few microseconds per linearization."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
+
     def with_outputs(self, y: np.ndarray) -> OperatingPoint:
-        """The same point with output values ``y``."""
-        return OperatingPoint(self.q, self.v, self.u, self.a, self.residual, self.equilibrium,
-                              self.tolerance, y, self.lam, self.notes, self.lam_names)
+        """The same point with output values ``y`` (a field copy: every other field is the
+        same object, already checked when this point was made)."""
+        obj = object.__new__(OperatingPoint)
+        obj.__dict__.update(self.__dict__)
+        obj.__dict__["y"] = y
+        return obj
 
     def as_dict(self) -> dict[str, Any]:
         """Plain-Python form (lists) for JSON export."""
@@ -140,6 +151,7 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
     """Inputs u0 that hold q0 at rest (``solve = "inputs"``).
 
     Args:
+        q0: A finite configuration (as :func:`configuration` and ``pinlin.linearize`` give).
         mass_inverse: M(q0)^-1 when the caller has it (needed only off equilibrium).
 
     Raises:
@@ -147,19 +159,21 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
             cannot cancel and ``allow_non_equilibrium`` is False. The message names the worst
             coordinate and the residual.
     """
-    if not np.isfinite(q0).all():
-        raise SceneError(system.scene.source, "operating_point.q", "q0 contains NaN or inf")
+    nv = system.nv
     gravity = system.static_force(q0)
     tau = gravity - system.spring_torque(q0) if system.has_springs else gravity
-    u0 = tau[system.actuated]
-    residual = tau.copy()
-    residual[system.actuated] = 0.0
-    abs_residual = np.abs(residual)
-    worst = int(abs_residual.argmax()) if residual.size else 0
-    tol = residual_tolerance(float(np.abs(gravity).max(initial=0.0)))
-    equilibrium = bool(residual.size == 0 or abs_residual[worst] <= tol)
+    u0 = tau[system.actuated_columns]
+    residual = np.zeros(nv)
+    tol = residual_tolerance(float(np.abs(gravity).max())) if nv else residual_tolerance(0.0)
+    free_at = system.unactuated
+    worst, equilibrium = 0, True
+    if free_at.size:
+        free = tau[free_at]
+        residual[free_at] = free
+        k = int(np.abs(free).argmax())
+        worst, equilibrium = int(free_at[k]), bool(abs(free[k]) <= tol)
     notes: tuple[str, ...] = ()
-    a0 = np.zeros(system.nv)
+    a0 = np.zeros(nv)
     if not equilibrium:
         name = system.coordinate_names[worst]
         if not allow_non_equilibrium:
@@ -176,5 +190,6 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
         notes = (f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
                  f"'{name}', the model describes the motion about (q0, v = 0) with "
                  f"|a0| = {np.sqrt(a0 @ a0):.6g}",)
-    return OperatingPoint(q=q0, v=np.zeros(system.nv), u=u0, a=a0, residual=residual,
-                          equilibrium=equilibrium, tolerance=tol, notes=notes)
+    return OperatingPoint.trusted(q=q0, v=np.zeros(nv), u=u0, a=a0, residual=residual,
+                                  equilibrium=equilibrium, tolerance=tol, y=None, lam=None,
+                                  notes=notes, lam_names=())

@@ -93,6 +93,9 @@ class System:
         stiffness: Spring stiffness per velocity coordinate [N*m/rad or N/m] (zeros if none).
         q_rest: Configuration at which every spring is relaxed (others: neutral).
         actuated: Velocity indices driven by the inputs, in input order.
+        unactuated: The other velocity indices, ascending.
+        actuated_columns: ``actuated`` as a slice when it is a contiguous ascending range
+            (indexing with it is a view), else the index array.
         input_names: ``u:<coordinate>`` for each input [N*m or N].
         input_matrix: S (nv x nu, read-only): generalized force = S u.
         state_names: ``q:<coordinate>`` then ``v:<coordinate>``.
@@ -141,6 +144,10 @@ class System:
         selection = np.zeros((model.nv, nu))
         selection[self.actuated, np.arange(nu)] = 1.0
         self.input_matrix = read_only(selection)
+        free = np.ones(model.nv, dtype=bool)
+        free[self.actuated] = False
+        self.unactuated = np.flatnonzero(free)
+        self.actuated_columns = _as_slice(self.actuated)
         self.data = model.createData()
         self.rotation = eff.rotation
         self._build_kinematic_model()
@@ -286,6 +293,20 @@ class System:
         n = 2 * self.nv
         return read_only(np.eye(n)), read_only(np.zeros((n, len(self.actuated))))
 
+    @functools.cached_property
+    def zero_velocity_terms(self) -> np.ndarray:
+        """The nv x nv zero matrix (read-only): C of a model at rest without damping."""
+        return read_only(np.zeros((self.nv, self.nv)))
+
+    @functools.cached_property
+    def kinematic_rows(self) -> np.ndarray:
+        """[[0, I], [0, 0]] (2nv x 2nv, read-only): the state matrix's kinematic block row
+        d(dq)/dt = v, the start of every A in independent coordinates."""
+        n = self.nv
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        return read_only(A)
+
     def mass_inverse(self, q: np.ndarray) -> np.ndarray:
         """M(q)^-1 from ``pin.computeMinverse`` (one recursion, no factorization), symmetric.
 
@@ -299,7 +320,7 @@ class System:
             Minv = np.linalg.inv(M) if np.all(np.isfinite(M)) else M
         # A coordinate that moves no inertia makes its row of M^-1 inf or NaN, diagonal included.
         diag = Minv.diagonal()
-        if diag.size and not (diag.min() > 0.0 and np.isfinite(diag.max())):
+        if diag.size and not (diag.min() > 0.0 and diag.max() < np.inf):
             self._raise_singular(q)
         return Minv
 
@@ -422,3 +443,10 @@ def _robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:
                                     loader.ref_posture)
                  if rm.srdf_path is not None else pin.neutral(model))
     return model, np.asarray(q_ref, float)
+
+
+def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """``index`` as an equivalent slice when it is a contiguous ascending range."""
+    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return slice(int(index[0]), int(index[0]) + index.size)
+    return index

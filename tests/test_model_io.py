@@ -66,3 +66,7 @@ def test_assembled_models_pass_the_public_checks(target):
         assert arr.dtype == np.float64 and not arr.flags.writeable
         assert getattr(checked, key) is arr  # accepted as is: already consistent
     assert checked.info == model.info
+    op = model.operating_point  # built by OperatingPoint.trusted: every field present
+    point = {f.name: getattr(op, f.name) for f in dataclasses.fields(op)}
+    assert op.__dict__.keys() == point.keys()
+    assert pinlin.OperatingPoint(**point).__dict__ == op.__dict__

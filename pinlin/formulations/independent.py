@@ -66,16 +66,15 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     nv = system.nv
     terms = second_order_terms(system, op, derivatives, step, estimate_error)
     Minv = system.mass_inverse(op.q) if mass_inverse is None else mass_inverse
-    A = np.zeros((2 * nv, 2 * nv))
-    A[:nv, nv:].flat[::nv + 1] = 1.0
+    A = system.kinematic_rows.copy()
     if terms.C is None:
         A[nv:, :nv] = -(Minv @ terms.K)
-        C_damp = np.zeros((nv, nv))
+        C_damp = system.zero_velocity_terms
     else:
         A[nv:] = -(Minv @ np.hstack([terms.K, terms.C]))
         C_damp = terms.C
     B = np.zeros((2 * nv, len(system.actuated)))
-    B[nv:] = Minv[:, system.actuated] if terms.Bu is None else Minv @ terms.Bu
+    B[nv:] = Minv[:, system.actuated_columns] if terms.Bu is None else Minv @ terms.Bu
     C, D, out_names, y0 = output_matrices(system, op)
     op_with_y = op.with_outputs(y0)
     condition = trace_condition(terms.M, Minv)
