@@ -28,6 +28,10 @@ import numpy as np
 #: Steps h (fd3, fd5) and eps (MuJoCo), half-decades from 1e-2 to 1e-9.
 STEPS = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9,
          1e-9)
+#: The best step of each method is then searched on a finer grid, tenth-decades spanning half
+#: a decade either side of the sweep's best (the bottom of a V-curve sampled every half decade
+#: can sit up to a factor ~3 above the true minimum).
+FINE = tuple(10.0 ** (k / 10) for k in range(-5, 6) if k != 0)
 ROBOTS = ("ur5", "panda", "kinova", "talos_arm", "solo12", "talos")
 MECHANISMS = ("four_bar", "delta")
 HUMANOID = "talos"
@@ -41,11 +45,29 @@ class Curve:
     steps: list[float] = field(default_factory=list)
     errors: list[float] = field(default_factory=list)
     times: list[float] = field(default_factory=list)
+    #: (h, error, time) at the best step of the fine search around the sweep's best, or None.
+    refined: tuple[float, float, float] | None = None
 
-    def best(self) -> tuple[float, float, float]:
-        """(h, error, time) at the smallest error."""
+    def sweep_best(self) -> tuple[float, float, float]:
+        """(h, error, time) at the smallest error of the half-decade sweep."""
         k = int(np.argmin(self.errors))
         return self.steps[k], self.errors[k], self.times[k]
+
+    def best(self) -> tuple[float, float, float]:
+        """(h, error, time) at the smallest error found, fine search included."""
+        coarse = self.sweep_best()
+        if self.refined is not None and self.refined[1] < coarse[1]:
+            return self.refined
+        return coarse
+
+    def refine(self, error_at: Callable[[float], float],
+               time_at: Callable[[float], float]) -> None:
+        """Search the best step on :data:`FINE` around the sweep's best (same procedure for
+        every method); the time is measured again at the step found."""
+        h0 = self.sweep_best()[0]
+        fine = [(error_at(h0 * f), h0 * f) for f in FINE]
+        err, h = min(fine)
+        self.refined = (h, err, time_at(h))
 
 
 @dataclass
@@ -55,6 +77,7 @@ class SystemResult:
     kind: str
     analytic_time: float
     analytic_error: float = float("nan")
+    aba_agreement: float = float("nan")
     curves: dict[str, Curve] = field(default_factory=dict)
     note: str = ""
     ratios: dict[str, float] = field(default_factory=dict)
@@ -142,8 +165,15 @@ def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
             curve.errors.append(error(run().A))
             curve.times.append(median_time(run, repeats))
             progress.step(f"{name} {backend} h={h:.0e}")
+
+        def run_at(h, backend=backend):
+            return linearize(scene, derivatives=backend, step=h, estimate_error=False)
+        curve.refine(lambda h, run_at=run_at: error(run_at(h).A),
+                     lambda h, run_at=run_at: median_time(lambda: run_at(h), repeats))
+        progress.step(f"{name} {backend} fine search")
         result.curves[backend] = curve
     result.analytic_error = result.curves["fd5"].best()[1]
+    result.aba_agreement = _aba_agreement(system, ref)
     try:
         if system.constraints:
             raise mjcf.MujocoError("MuJoCo's loop equalities act on the dependent coordinates "
@@ -151,7 +181,7 @@ def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
         ms = mjcf.build(system)
     except mjcf.MujocoError as exc:
         result.note = str(exc)
-        for _ in range(2 * len(STEPS)):
+        for _ in range(2 * len(STEPS) + 2):
             progress.step(f"{name} MuJoCo: n/a")
         return result
     op = ref.operating_point
@@ -164,10 +194,37 @@ def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
             curve.errors.append(error(run_mj()))
             curve.times.append(median_time(run_mj, repeats))
             progress.step(f"{name} {label} eps={h:.0e}")
+
+        def mj_at(h, centered=centered):
+            return mjcf.continuous_state_matrix(ms, system, op, eps=h, centered=centered)
+        curve.refine(lambda h, mj_at=mj_at: error(mj_at(h)),
+                     lambda h, mj_at=mj_at: median_time(lambda: mj_at(h), repeats))
+        progress.step(f"{name} {label} fine search")
         result.curves[label] = curve
     if name == HUMANOID:
         result.ratios = _interleaved_ratios(scene, ms, op, result, repeats)
     return result
+
+
+def _aba_agreement(system, ref) -> float:
+    """max |A - A_aba| / max |A| with A_aba from ``pin.computeABADerivatives``, a second analytic
+    algorithm (ABA differentiated, not RNEA derivatives and M^-1): the two share no
+    truncation, so their difference measures the analytic model's rounding. NaN where pinlin
+    adds terms Pinocchio's ABA lacks (loops, rotation, springs, damping)."""
+    import pinocchio as pin
+
+    if (system.constraints or system.rotation is not None or system.has_springs
+            or system.has_damping):
+        return float("nan")
+    op, nv = ref.operating_point, system.nv
+    tau = system.input_matrix @ op.u
+    data = system.model.createData()
+    pin.computeABADerivatives(system.model, data, op.q, op.v, tau)
+    A = np.zeros_like(ref.A)
+    A[:nv, nv:] = np.eye(nv)
+    A[nv:, :nv] = data.ddq_dq
+    A[nv:, nv:] = data.ddq_dv
+    return float(np.abs(A - ref.A).max() / np.abs(ref.A).max())
 
 
 def _interleaved_ratios(scene, ms, op, result: SystemResult, repeats: int) -> dict[str, float]:
@@ -205,8 +262,12 @@ def report(results: list[SystemResult], out: Path, command: str) -> str:
         "",
         f"Produced by `{command}` on {platform.machine()} ({platform.processor() or 'cpu'}), "
         f"pin {pin.__version__}, MuJoCo {_mujoco_version()}, numpy {np.__version__}. "
-        "Error: max |A - A_analytic| / max |A_analytic|. The analytic model's own error is "
-        "estimated as fd5's best agreement with it. Time: median of one complete "
+        "Error: max |A - A_analytic| / max |A_analytic|. Each method's best step is taken "
+        "from the half-decade sweep and then searched on tenth-decades within half a decade "
+        "either side (the same search for every method). The analytic model's own error is "
+        "estimated as fd5's best agreement with it; as a second estimate, its agreement with "
+        "`pin.computeABADerivatives` (a different analytic algorithm, so the difference is "
+        "rounding of one or the other) is listed beside. Time: median of one complete "
         "`pinlin.linearize` (operating point included, error estimate off) or one MuJoCo "
         "`continuous_state_matrix` (state set + `mjd_transitionFD` + exact recovery of A from "
         "the Euler step). Floating bases: rotated base, free fall at rest (a0 != 0). "
@@ -215,21 +276,23 @@ def report(results: list[SystemResult], out: Path, command: str) -> str:
         "",
         "## Headline (best step of each method)",
         "",
-        "| system | nv | analytic [ms] | analytic error (est.) | fd3 best: h, error, ms "
+        "| system | nv | analytic [ms] | analytic error (est., fd5) | analytic vs ABA derivatives "
+        "| fd3 best: h, error, ms "
         "| fd5 best: h, error, ms | MuJoCo fwd best: eps, error, ms "
         "| MuJoCo ctr best: eps, error, ms |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         cells = []
         for key in ("fd3", "fd5", "mujoco forward", "mujoco centered"):
             if key in r.curves:
                 h, e, t = r.curves[key].best()
-                cells.append(f"{h:.0e}, {e:.1e}, {_fmt_time(t)}")
+                cells.append(f"{h:.1e}, {e:.1e}, {_fmt_time(t)}")
             else:
                 cells.append("n/a")
         lines.append(f"| {r.name} ({r.kind}) | {r.nv} | {_fmt_time(r.analytic_time)} | "
-                     f"{r.analytic_error:.1e} | " + " | ".join(cells) + " |")
+                     f"{r.analytic_error:.1e} | {_fmt_error(r.aba_agreement)} | "
+                     + " | ".join(cells) + " |")
     hum = next((r for r in results if r.name == HUMANOID), None)
     if hum is not None and hum.ratios:
         _, emc, _ = hum.curves["mujoco centered"].best()
@@ -247,6 +310,8 @@ def report(results: list[SystemResult], out: Path, command: str) -> str:
             f"{hum.ratios['mujoco centered']:.1f} | >= 10 |",
             f"| error of MuJoCo centered (best eps) / analytic error estimate | "
             f"{emc / hum.analytic_error:.2g} | >= 1000 |",
+            f"| the same with the ABA cross-check as the analytic error | "
+            f"{emc / hum.aba_agreement:.2g} | - |",
             f"| error of fd5 at the default step / analytic error estimate | "
             f"{_error_at(hum.curves['fd5'], 1e-3) / hum.analytic_error:.2g} | - |",
         ]
@@ -259,12 +324,19 @@ def report(results: list[SystemResult], out: Path, command: str) -> str:
         for i, h in enumerate(STEPS):
             cells = [f"{c.errors[i]:.1e} | {_fmt_time(c.times[i])}" for c in r.curves.values()]
             lines.append(f"| {h:.0e} | " + " | ".join(cells) + " |")
+        fine = [f"{c.refined[1]:.1e} at {c.refined[0]:.2e} | {_fmt_time(c.refined[2])}"
+                if c.refined else "- | -" for c in r.curves.values()]
+        lines.append("| fine search | " + " | ".join(fine) + " |")
         lines.append(f"\nanalytic: {_fmt_time(r.analytic_time)} ms, error estimate "
                      f"{r.analytic_error:.1e}" + (f". MuJoCo: {r.note}" if r.note else "") + "\n")
     text = "\n".join(lines) + "\n"
     out.mkdir(parents=True, exist_ok=True)
     (out / "accuracy_vs_time.md").write_text(text)
     return text
+
+
+def _fmt_error(e: float) -> str:
+    return "n/a" if not np.isfinite(e) else f"{e:.1e}"
 
 
 def _error_at(curve: Curve, h: float) -> float:
@@ -283,6 +355,7 @@ def plot(results: list[SystemResult], out: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     folder = out / "accuracy_vs_time"
     folder.mkdir(parents=True, exist_ok=True)
@@ -290,7 +363,9 @@ def plot(results: list[SystemResult], out: Path) -> None:
     for r in results:
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
         for key, c in r.curves.items():
-            ax1.loglog(c.steps, c.errors, style[key], label=key)
+            line, = ax1.loglog(c.steps, c.errors, style[key], label=key)
+            if c.refined is not None:
+                ax1.loglog([c.refined[0]], [c.refined[1]], "x", color=line.get_color(), ms=9)
             ax2.loglog(np.array(c.times) * 1e3, c.errors, style[key].replace("-", ""), label=key)
         ax1.axhline(r.analytic_error, color="k", lw=1, ls=":", label="analytic (est.)")
         ax1.set_xlabel("step h / eps")
@@ -299,6 +374,7 @@ def plot(results: list[SystemResult], out: Path) -> None:
         ax1.invert_xaxis()
         ax2.loglog([r.analytic_time * 1e3], [r.analytic_error], "k*", ms=14, label="analytic")
         ax2.set_xlabel("median time [ms]")
+        ax2.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax2.set_title(f"{r.name}: error versus time")
         for ax in (ax1, ax2):
             ax.grid(True, which="both", alpha=0.3)
@@ -317,7 +393,7 @@ def run(systems: list[str], repeats: int = 5, out_dir: str | Path = "validation/
         raise PinlinError(f"--repeats must be >= 1, got {repeats}")
     for name in systems:  # fail before the long run, not in the middle of it
         check_scene(name)
-    bar = Progress(len(systems) * 4 * len(STEPS), progress)
+    bar = Progress(len(systems) * 4 * (len(STEPS) + 1), progress)
     results = [measure(name, repeats, bar) for name in systems]
     out = Path(out_dir)
     text = report(results, out, command)

@@ -94,6 +94,10 @@ def test_bench_writes_report_and_plots(tmp_path, capsys):
     curves = results[0].curves
     assert set(curves) == {"fd3", "fd5", "mujoco forward", "mujoco centered"}
     assert curves["fd5"].best()[1] < 1e-10
+    h_sweep, h_fine = curves["fd5"].sweep_best()[0], curves["fd5"].refined[0]
+    assert 10 ** -0.51 < h_fine / h_sweep < 10 ** 0.51
+    # Pinocchio's ABA derivatives, a second analytic algorithm, agree to rounding.
+    assert results[0].aba_agreement < 1e-13
     loop = results[1]
     assert set(loop.curves) == {"fd3", "fd5"} and "dependent coordinates" in loop.note
     assert loop.curves["fd5"].best()[1] < 1e-10
