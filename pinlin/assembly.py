@@ -33,7 +33,8 @@ class Partition:
         dependent: Velocity indices of the dependent coordinates.
         chosen: Whether pinlin chose z (True) or the scene named it.
         condition: 2-norm condition number of Phi_d, the Jacobian block of the dependent
-            coordinates (large near a singular, e.g. toggle, position).
+            coordinates (large near a singular, e.g. toggle, position); NaN when the
+            partition was made unchecked (a starting guess).
     """
 
     rows: np.ndarray
@@ -42,6 +43,13 @@ class Partition:
     dependent: np.ndarray
     chosen: bool
     condition: float
+
+
+def complement(n: int, index: np.ndarray) -> np.ndarray:
+    """The indices in range(n) not in ``index``, ascending (a mask: np.setdiff1d sorts)."""
+    keep = np.ones(n, dtype=bool)
+    keep[index] = False
+    return np.flatnonzero(keep)
 
 
 def independent_rows(jac: np.ndarray, loop_rows: list[range], source, loops) -> np.ndarray:
@@ -106,9 +114,11 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
         _, _, piv = sla.qr(G * weight, mode="economic", pivoting=True)
         independent = np.sort(piv[m:])
         chosen = True
-    dependent = np.setdiff1d(np.arange(nv), independent)
+    dependent = complement(nv, independent)
+    if not check:
+        return Partition(rows, dropped, independent, dependent, chosen, float("nan"))
     cond = float(np.linalg.cond(G[:, dependent])) if m else 1.0
-    if check and (not np.isfinite(cond) or cond > 1e12):
+    if not np.isfinite(cond) or cond > 1e12:
         names_z = ", ".join(system.coordinate_names[i] for i in independent)
         raise SceneError(src, "operating_point.independent",
                          f"coordinates [{names_z}] cannot parametrize the mechanism at this "
@@ -126,7 +136,7 @@ def assemble(system, q_guess: np.ndarray, independent: np.ndarray, *, max_iter: 
     """
     cons = system.constraints
     q = np.array(q_guess, dtype=float)
-    dependent = np.setdiff1d(np.arange(system.nv), independent)
+    dependent = complement(system.nv, independent)
     phi = cons.residual(q)
     best = np.abs(phi).max(initial=0.0)
     for _ in range(max_iter):

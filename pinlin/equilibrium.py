@@ -87,9 +87,9 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
             np.zeros(0)
     else:
         SG = np.hstack([S, G.T])
-        sol, *_ = np.linalg.lstsq(SG, f, rcond=None)
+        sol, _, rank, _ = np.linalg.lstsq(SG, f, rcond=None)  # rank as matrix_rank's
         u0, lam_k = sol[:S.shape[1]], sol[S.shape[1]:]
-        if np.linalg.matrix_rank(SG) < S.shape[1] + len(part.rows):
+        if rank < S.shape[1] + len(part.rows):
             notes.append("the inputs and constraint forces that hold q0 are not unique "
                          "(redundant actuation): the least-norm ones are reported")
     residual = f - S @ u0 - G.T @ lam_k

@@ -354,6 +354,35 @@ def test_redundant_row_is_dropped_and_reported():
     assert op.lam_names == ("closure.x", "closure.y", "closure.z") and op.lam[1] == 0.0
 
 
+def test_redundant_actuation_reports_the_least_norm_inputs():
+    """Crank and rocker both driven: the inputs and loop forces that hold q0 form a family;
+    pinlin reports that and the least-norm member, orthogonal to the family's directions (the
+    nullspace of [S, Phi_q^T] from an SVD). With the crank alone the note is absent."""
+    import scipy.linalg as sla
+
+    single = pinlin.linearize(URDF_DIR / "four_bar.toml")
+    assert not any("not unique" in n for n in single.operating_point.notes)
+    import tomllib
+
+    data = tomllib.loads((URDF_DIR / "four_bar.toml").read_text())
+    data["urdf"] = str(URDF_DIR / data["urdf"])
+    data["inputs"]["actuated"] = ["crank", "rocker"]
+    scene = pinlin.Scene.from_dict(data)
+    model = pinlin.linearize(scene)
+    op = model.operating_point
+    assert any("not unique" in n for n in op.notes)
+    system = scene.system
+    G = system.constraints.jacobian(op.q)[[0, 2]]  # closure.y is the redundant row
+    SG = np.hstack([system.input_matrix, G.T])
+    x = np.concatenate([op.u, op.lam[[0, 2]]])
+    f = pin.computeGeneralizedGravity(system.model, system.model.createData(), op.q) \
+        - system.spring_torque(op.q)
+    np.testing.assert_allclose(SG @ x, f, atol=1e-9)
+    null = sla.null_space(SG)
+    assert null.shape[1] == 1
+    assert abs(null.T @ x).max() < 1e-9 * np.abs(x).max()
+
+
 def test_constraint_forces_balance_the_statics():
     """f - tau_spring = S u0 + Phi_q^T lam, with Phi_q from finite differences of the frame
     positions (a second route to the loop Jacobian)."""
