@@ -24,7 +24,9 @@ position rows' information to rounding when dt is small.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -48,6 +50,8 @@ class MujocoScene:
         dof: MuJoCo dof index of each pinlin velocity coordinate.
         free: Whether the base is a free joint (pinlin coordinates 0-5).
         dt: Time step [s].
+        warnings: What MuJoCo warned while importing and compiling (for example joint limits
+            it ignores; limits are switched off anyway).
     """
 
     model: mujoco.MjModel
@@ -56,6 +60,20 @@ class MujocoScene:
     dof: np.ndarray
     free: bool
     dt: float
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+
+@contextmanager
+def _captured_warnings() -> Iterator[list[str]]:
+    """Collect MuJoCo's warnings in a list instead of its default handler, which appends them
+    to MUJOCO_LOG.TXT in the current directory; the previous handler is restored after."""
+    previous = mujoco.get_mju_user_warning()
+    caught: list[str] = []
+    mujoco.set_mju_user_warning(caught.append)
+    try:
+        yield caught
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
 def strip_urdf(text: str) -> str:
@@ -94,10 +112,11 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
         raise MujocoError(f"scene '{scene.name}': steady rotation has no MuJoCo counterpart "
                           "(MuJoCo integrates in an inertial frame)")
     text = strip_urdf(system.urdf_path.read_text(encoding="utf-8"))
-    try:
-        spec = mujoco.MjSpec.from_string(text)
-    except Exception as exc:  # MuJoCo raises ValueError with its reason
-        raise MujocoError(f"MuJoCo cannot import {system.urdf_path}: {exc}") from None
+    with _captured_warnings() as caught:
+        try:
+            spec = mujoco.MjSpec.from_string(text)
+        except Exception as exc:  # MuJoCo raises ValueError with its reason
+            raise MujocoError(f"MuJoCo cannot import {system.urdf_path}: {exc}") from None
     free = system.base_joint is not None
     if free:
         root = spec.worldbody.first_body()
@@ -139,10 +158,11 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
         else:
             rest = system.q_rest[j.idx_q]
         joint.springref = float(rest)
-    try:
-        model = spec.compile()
-    except Exception as exc:
-        raise MujocoError(f"MuJoCo refuses '{scene.name}': {exc}") from None
+    with _captured_warnings() as caught_compiling:
+        try:
+            model = spec.compile()
+        except Exception as exc:
+            raise MujocoError(f"MuJoCo refuses '{scene.name}': {exc}") from None
     dof = np.zeros(system.nv, dtype=int)
     for name, j in system.joints.items():
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -152,7 +172,8 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
     if model.nv != system.nv:
         raise MujocoError(f"scene '{scene.name}': MuJoCo has {model.nv} dofs, Pinocchio "
                           f"{system.nv}")
-    return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt)
+    return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt,
+                       tuple(caught + caught_compiling))
 
 
 def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) -> None:

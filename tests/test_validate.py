@@ -116,3 +116,14 @@ def test_validate_command_writes_reports_and_fails_on_mismatch(tmp_path, monkeyp
     capfd.readouterr()
     assert main(["validate", "double_pendulum", "--out-dir", str(tmp_path),
                  "--no-progress"]) == 1
+
+
+def test_mujoco_import_warnings_are_kept_not_written_to_the_working_folder(tmp_path, monkeypatch):
+    """A URDF with equal joint limits makes MuJoCo warn; the warnings land on the MujocoScene,
+    no MUJOCO_LOG.TXT appears in the working folder, and the previous handler is restored."""
+    monkeypatch.chdir(tmp_path)
+    before = mujoco.get_mju_user_warning()
+    ms = mjcf.build(pinlin.Scene.from_robot("double_pendulum_simple").system)
+    assert any("equal lower and upper limits" in w for w in ms.warnings)
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    assert mujoco.get_mju_user_warning() is before
