@@ -10,3 +10,10 @@ def read_only(arr: np.ndarray) -> np.ndarray:
     copying them, so constant matrices (S, C = I) are built once per system."""
     arr.setflags(write=False)
     return arr
+
+
+def complement(n: int, index: np.ndarray) -> np.ndarray:
+    """The indices in range(n) not in ``index``, ascending (a mask: np.setdiff1d sorts)."""
+    keep = np.ones(n, dtype=bool)
+    keep[index] = False
+    return np.flatnonzero(keep)

@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg as sla
 
+from .arrays import complement
 from .exceptions import AssemblyError, SceneError
 
 #: Rank threshold relative to the largest pivot of the constraint Jacobian.
@@ -43,13 +44,6 @@ class Partition:
     dependent: np.ndarray
     chosen: bool
     condition: float
-
-
-def complement(n: int, index: np.ndarray) -> np.ndarray:
-    """The indices in range(n) not in ``index``, ascending (a mask: np.setdiff1d sorts)."""
-    keep = np.ones(n, dtype=bool)
-    keep[index] = False
-    return np.flatnonzero(keep)
 
 
 def independent_rows(jac: np.ndarray, loop_rows: list[range], source, loops) -> np.ndarray:

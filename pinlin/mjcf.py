@@ -102,21 +102,28 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
     Loops become ``connect`` (point) or ``weld`` equalities between sites at the two frames,
     mimic couplings ``joint`` equalities (q_m = offset + multiplier q_j), both stiff
     (solref time constant 2 dt, solimp ``impedance``). Steady rotation cannot be expressed.
+    MuJoCo's warnings while importing and compiling are kept in ``warnings``.
 
     Raises:
         MujocoError: MuJoCo refuses the model (its reason is quoted), or the scene has effects
             this exporter cannot express.
     """
+    with _captured_warnings() as caught:
+        ms = _build(system, dt, impedance)
+    ms.warnings = tuple(caught)
+    return ms
+
+
+def _build(system, dt: float, impedance: float) -> MujocoScene:
     scene = system.scene
     if system.rotation is not None:
         raise MujocoError(f"scene '{scene.name}': steady rotation has no MuJoCo counterpart "
                           "(MuJoCo integrates in an inertial frame)")
     text = strip_urdf(system.urdf_path.read_text(encoding="utf-8"))
-    with _captured_warnings() as caught:
-        try:
-            spec = mujoco.MjSpec.from_string(text)
-        except Exception as exc:  # MuJoCo raises ValueError with its reason
-            raise MujocoError(f"MuJoCo cannot import {system.urdf_path}: {exc}") from None
+    try:
+        spec = mujoco.MjSpec.from_string(text)
+    except Exception as exc:  # MuJoCo raises ValueError with its reason
+        raise MujocoError(f"MuJoCo cannot import {system.urdf_path}: {exc}") from None
     free = system.base_joint is not None
     if free:
         root = spec.worldbody.first_body()
@@ -158,11 +165,10 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
         else:
             rest = system.q_rest[j.idx_q]
         joint.springref = float(rest)
-    with _captured_warnings() as caught_compiling:
-        try:
-            model = spec.compile()
-        except Exception as exc:
-            raise MujocoError(f"MuJoCo refuses '{scene.name}': {exc}") from None
+    try:
+        model = spec.compile()
+    except Exception as exc:
+        raise MujocoError(f"MuJoCo refuses '{scene.name}': {exc}") from None
     dof = np.zeros(system.nv, dtype=int)
     for name, j in system.joints.items():
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -172,8 +178,7 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
     if model.nv != system.nv:
         raise MujocoError(f"scene '{scene.name}': MuJoCo has {model.nv} dofs, Pinocchio "
                           f"{system.nv}")
-    return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt,
-                       tuple(caught + caught_compiling))
+    return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt)
 
 
 def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) -> None:

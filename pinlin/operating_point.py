@@ -64,10 +64,7 @@ class OperatingPoint:
     def with_outputs(self, y: np.ndarray) -> OperatingPoint:
         """The same point with output values ``y`` (a field copy: every other field is the
         same object, already checked when this point was made)."""
-        obj = object.__new__(OperatingPoint)
-        obj.__dict__.update(self.__dict__)
-        obj.__dict__["y"] = y
-        return obj
+        return OperatingPoint.trusted(**{**self.__dict__, "y": y})
 
     def as_dict(self) -> dict[str, Any]:
         """Plain-Python form (lists) for JSON export."""

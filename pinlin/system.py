@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .arrays import read_only
+from .arrays import complement, read_only
 from .exceptions import ModelError, SceneError, UnknownNameError
 from .robots import load_robot
 from .scene import Scene
@@ -144,9 +144,7 @@ class System:
         selection = np.zeros((model.nv, nu))
         selection[self.actuated, np.arange(nu)] = 1.0
         self.input_matrix = read_only(selection)
-        free = np.ones(model.nv, dtype=bool)
-        free[self.actuated] = False
-        self.unactuated = np.flatnonzero(free)
+        self.unactuated = complement(model.nv, self.actuated)
         self.actuated_columns = _as_slice(self.actuated)
         self.data = model.createData()
         self.rotation = eff.rotation
