@@ -10,11 +10,13 @@ Typical use::
 
 from .conditioning import AccuracyWarning
 from .exceptions import (
+    ArgumentError,
     AssemblyError,
     EquilibriumError,
     ModelError,
     ModelFileError,
     PinlinError,
+    ResourceError,
     RobotLoadError,
     SceneError,
     ShapeError,
@@ -33,6 +35,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "AccuracyWarning",
+    "ArgumentError",
     "AssemblyError",
     "Effects",
     "EquilibriumError",
@@ -42,6 +45,7 @@ __all__ = [
     "ModelFileError",
     "OperatingPoint",
     "PinlinError",
+    "ResourceError",
     "RobotLoadError",
     "Scene",
     "SceneError",

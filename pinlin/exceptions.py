@@ -148,3 +148,32 @@ class ModelFileError(PinlinError):
         self.path = path
         self.reason = reason
         super().__init__(f"{path}: {reason}")
+
+
+class ArgumentError(PinlinError):
+    """A Python argument or command-line option has the wrong type or value, or does not apply
+    to the request (an option that the chosen formulation or backend would ignore).
+
+    Attributes:
+        argument: The argument or option name, e.g. ``step`` or ``--basis``.
+        reason: What was expected and what was found.
+    """
+
+    def __init__(self, argument: str, reason: str) -> None:
+        self.argument = argument
+        self.reason = reason
+        super().__init__(f"argument '{argument}': {reason}")
+
+
+class ResourceError(PinlinError):
+    """A request would need more memory (or another resource) than the limit allows.
+
+    Attributes:
+        needed: Estimated amount [bytes].
+        limit: The limit in force [bytes].
+    """
+
+    def __init__(self, message: str, needed: float = 0.0, limit: float = 0.0) -> None:
+        self.needed = needed
+        self.limit = limit
+        super().__init__(message)
