@@ -20,13 +20,14 @@ Numerical backends perturb q on the manifold with ``pin.integrate`` and take M f
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import PinlinError
+from .exceptions import ArgumentError, PinlinError
 from .operating_point import OperatingPoint
 from .system import System
 
@@ -50,21 +51,47 @@ _PLANS = {  # backend: (formula, companion, companion weight in the estimate)
 }
 
 
+#: Steps outside [STEP_MIN, STEP_MAX] are refused: beyond 0.1 the formulas leave their asymptotic
+#: range, where the error estimate was measured to hold (it under-reports from h ~ 0.3 on Talos
+#: and solo12); below 1e-10 rounding leaves fewer than ~5 significant digits and the estimate
+#: itself starts to fail (h = 1e-12 on a slider-crank). See validation/reports/error_estimate.md.
+STEP_MIN, STEP_MAX = 1e-10, 0.1
+
+
 def resolve_steps(backend: str, step: float | Mapping[str, float] | None) -> dict[str, float]:
-    """Steps for ``backend``: the defaults, one number for all, or a {"q", "v", "u"} table."""
+    """Steps for ``backend``: the defaults, one number for all, or a {"q", "v", "u"} table.
+
+    Raises:
+        ArgumentError: an unknown key, or a step that is not a number in
+            [:data:`STEP_MIN`, :data:`STEP_MAX`].
+    """
     steps = dict(DEFAULT_STEPS[backend])
     if step is None:
         return steps
-    given = step if isinstance(step, Mapping) else dict.fromkeys(STEP_KEYS, step)
+    if isinstance(step, Mapping):
+        given = step
+    elif isinstance(step, int | float | np.floating | np.integer) and not isinstance(step, bool):
+        given = dict.fromkeys(STEP_KEYS, step)
+    else:
+        raise ArgumentError("step", "expected a number or a table {'q': .., 'v': .., 'u': ..}, "
+                                    f"got {type(step).__name__}")
     for key, value in given.items():
         if key not in STEP_KEYS:
-            raise PinlinError(f"unknown step key '{key}'; expected {', '.join(STEP_KEYS)}")
+            raise ArgumentError("step", f"unknown step key {key!r}; expected "
+                                        f"{', '.join(STEP_KEYS)}")
         try:
-            h = float(value)
-        except (TypeError, ValueError):
+            h = float(value) if not isinstance(value, bool | str) else float("nan")
+        except (TypeError, ValueError, OverflowError):
             h = float("nan")
         if not (np.isfinite(h) and h > 0):
-            raise PinlinError(f"finite-difference step must be a positive number, got {value!r}")
+            raise ArgumentError("step", f"finite-difference step must be a positive number, "
+                                        f"got {value!r}")
+        if not STEP_MIN <= h <= STEP_MAX:
+            raise ArgumentError("step", f"finite-difference step {h:g} is outside "
+                                        f"[{STEP_MIN:g}, {STEP_MAX:g}] (rad, m, rad/s, m/s, N*m "
+                                        "or N): larger steps leave the range where the "
+                                        "difference formulas and their error estimate hold, "
+                                        "smaller ones lose the result to rounding")
         steps[key] = h
     return steps
 
@@ -81,7 +108,9 @@ class SecondOrderTerms(NamedTuple):
         Bu: -dH/du, the input matrix [-] (numerical backends difference it too; else None).
         alt: The companion estimate of (K, C) for the error estimate (numerical backends with
             an estimate), else None.
-        rounding: Estimated rounding error of K and C, absolute [N*m/rad ...] (numerical).
+        rounding: Standard deviation of the rounding noise of an entry of K and of C in each
+            row, in their units (numerical backends; zeros without an estimate; see
+            :func:`entry_noise`).
         steps: Steps used (numerical backends).
     """
 
@@ -91,7 +120,7 @@ class SecondOrderTerms(NamedTuple):
     backend: str
     Bu: np.ndarray | None = None
     alt: tuple[np.ndarray, np.ndarray | None] | None = None
-    rounding: float = 0.0
+    rounding: tuple[np.ndarray, np.ndarray] | None = None
     steps: Mapping[str, float] | None = None
 
 
@@ -143,13 +172,13 @@ def residual_forces(system: System, q: np.ndarray, v: np.ndarray, a: np.ndarray,
 
 
 def _difference(fun, n: int, h: float, backend: str, estimate: bool
-                ) -> tuple[np.ndarray, np.ndarray | None, float]:
+                ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Columns j of d fun(x)/dx_j at x = 0 by the backend's formula with step h, the companion
-    columns for the error estimate (or None), and the largest |fun| seen (for rounding)."""
+    columns for the error estimate (or None), and the largest |fun| seen per component (for
+    rounding)."""
     formula, companion, _ = _PLANS[backend]
     offsets = sorted(set(formula) | (set(companion) if estimate else set()))
-    D = D_alt = None
-    scale = 0.0
+    D = D_alt = scale = None
     e = np.zeros(n)
     for j in range(n):
         e[j] = 1.0
@@ -159,31 +188,75 @@ def _difference(fun, n: int, h: float, backend: str, estimate: bool
         if D is None:
             D = np.zeros((col.size, n))
             D_alt = np.zeros((col.size, n)) if estimate else None
+            scale = np.zeros(col.size)
         D[:, j] = col
         if D_alt is not None:
             D_alt[:, j] = sum(w * values[k] for k, w in companion.items()) / h
-        scale = max(scale, max(float(np.abs(v).max(initial=0.0)) for v in values.values()))
-    assert D is not None
+        for v in values.values():
+            np.maximum(scale, np.abs(v), out=scale)
+    assert D is not None and scale is not None
     return D, D_alt, scale
+
+
+#: Computational noise of H is measured (Moré & Wild, "Estimating computational noise", SIAM J.
+#: Sci. Comput. 33, 2011) from the NOISE_ORDER-th differences of H at NOISE_POINTS points
+#: spaced NOISE_SPACING apart along fixed pseudo-random unit directions, once through the
+#: operating point and once through a point one step away (the noise grows with |H| and the
+#: difference points lie up to 4 steps away: a hanging pendulum has H(q0) = 0 exactly). The
+#: smooth part of such a difference is ~ H^(4) (1e-9)^4, far below rounding; what is left is
+#: noise, whose standard deviation the difference multiplies by sqrt(C(2m, m)).
+NOISE_ORDER, NOISE_POINTS, NOISE_SPACING = 4, 7, 1e-9
+
+
+def computational_noise(fun, n: int, h: float) -> np.ndarray:
+    """Standard deviation of the rounding noise of each component of ``fun`` (R^n -> R^m) near
+    x = 0 and one step ``h`` away, in the units of ``fun`` (size m)."""
+    if n == 0:
+        return np.zeros_like(fun(np.zeros(0)))
+    rng = np.random.default_rng(20111)
+    diffs = []
+    for center in (0.0, h):
+        d = rng.standard_normal(n)
+        d /= np.linalg.norm(d)
+        x0 = center * rng.standard_normal(n) / np.sqrt(n)
+        values = np.array([fun(x0 + k * NOISE_SPACING * d) for k in range(NOISE_POINTS)])
+        diffs.append(np.diff(values, NOISE_ORDER, axis=0))
+    dd = np.vstack(diffs)
+    return np.sqrt((dd**2).mean(axis=0) / math.comb(2 * NOISE_ORDER, NOISE_ORDER))
+
+
+def entry_noise(noise: np.ndarray, scale: np.ndarray, backend: str, h: float) -> np.ndarray:
+    """Standard deviation of the rounding error of a differenced entry in each row [units of
+    fun / units of x]: the row's evaluation noise (measured ``noise``; at least eps ``scale``,
+    the rounding of the weighted sum itself) times the formula's sqrt(sum w_k^2) / h."""
+    eps = np.finfo(float).eps
+    weights = math.sqrt(sum(w * w for w in _PLANS[backend][0].values()))
+    return np.maximum(noise, eps * scale) * weights / h
 
 
 def _numerical(system: System, op: OperatingPoint, backend: str, steps: Mapping[str, float],
                estimate: bool) -> SecondOrderTerms:
     model, nv = system.model, system.nv
     S = system.input_matrix
-    formula, _, weight = _PLANS[backend]
-    eps = np.finfo(float).eps
-    K, K_alt, scale_q = _difference(
-        lambda d: residual_forces(system, pin.integrate(model, op.q, d), op.v, op.a, op.lam),
-        nv, steps["q"], backend, estimate)
-    rounding = eps * scale_q * sum(abs(w) for w in formula.values()) / steps["q"]
+    _, _, weight = _PLANS[backend]
+
+    def h_of_q(d: np.ndarray) -> np.ndarray:
+        return residual_forces(system, pin.integrate(model, op.q, d), op.v, op.a, op.lam)
+
+    def h_of_v(d: np.ndarray) -> np.ndarray:
+        return residual_forces(system, op.q, op.v + d, op.a)
+
+    K, K_alt, scale_q = _difference(h_of_q, nv, steps["q"], backend, estimate)
     C = C_alt = None
+    rounding = (np.zeros(nv), np.zeros(nv))
+    if estimate:
+        rounding = (entry_noise(computational_noise(h_of_q, nv, steps["q"]), scale_q, backend,
+                                steps["q"]), rounding[1])
     if velocity_terms(system, op):
-        C, C_alt, scale_v = _difference(
-            lambda d: residual_forces(system, op.q, op.v + d, op.a), nv, steps["v"], backend,
-            estimate)
-        rounding = max(rounding,
-                       eps * scale_v * sum(abs(w) for w in formula.values()) / steps["v"])
+        C, C_alt, scale_v = _difference(h_of_v, nv, steps["v"], backend, estimate)
+        if estimate:
+            rounding = (rounding[0], entry_noise(computational_noise(h_of_v, nv, steps["v"]),
+                                                 scale_v, backend, steps["v"]))
     Bu = np.zeros_like(S)
     if S.shape[1]:
         # Bu = -dH/du. H is linear in u: the difference is exact up to rounding, any step.
@@ -201,9 +274,34 @@ def _numerical(system: System, op: OperatingPoint, backend: str, steps: Mapping[
                             rounding=rounding, steps=dict(steps))
 
 
-def error_estimate(A: np.ndarray, A_alt: np.ndarray, terms: SecondOrderTerms) -> float:
-    """Relative error estimate of a numerically derived A: truncation, from the companion
-    formula pushed through the same formulation (``A_alt``), plus rounding relative to K."""
+#: The rounding part of the estimate is NOISE_SIGMAS standard deviations of the noise pushed
+#: into A: A has at most 4 nv^2 entries (10^4 for nv = 50), and a Gaussian exceeds 4.5 sigma
+#: with probability 7e-6.
+NOISE_SIGMAS = 4.5
+#: The truncation part is TRUNCATION_SAFETY times the companion's estimate, which carries a
+#: relative error of its own of O(h^2) (the next term of the series; measured up to 0.5 % at
+#: h = 3e-2 on Talos, solo12 and a rotating pendulum).
+TRUNCATION_SAFETY = 1.5
+#: Rounding of the formulation itself (A from K and C by solves and products): a few units
+#: of eps relative to max |A| (measured up to 0.3 eps between two computations).
+FORMULATION_ROUNDING = 4 * np.finfo(float).eps
+
+
+def propagated_noise(X: np.ndarray, sigma: np.ndarray, Y: np.ndarray | None = None) -> float:
+    """Largest standard deviation of an entry of X dK Y when the entries of dK are independent
+    with standard deviation ``sigma[k]`` in row k: max_i ||X[i, :] sigma||_2 max_j ||Y[:, j]||_2
+    (Y None: the identity)."""
+    Xs = X * sigma[None, :]
+    x = float(np.sqrt((Xs * Xs).sum(axis=1).max(initial=0.0)))
+    return x if Y is None else x * float(np.sqrt((Y * Y).sum(axis=0).max(initial=0.0)))
+
+
+def error_estimate(A: np.ndarray, A_alt: np.ndarray, noise: float) -> float:
+    """Relative error estimate of a numerically derived A, max |error| / max |A|:
+    :data:`TRUNCATION_SAFETY` times the truncation error, from the companion formula pushed
+    through the same formulation (``A_alt``), plus :data:`NOISE_SIGMAS` times ``noise``, the
+    standard deviation [units of A] of the rounding noise of K and C pushed through the
+    formulation (see :func:`propagated_noise`), plus the formulation's own rounding."""
     scale = max(float(np.abs(A).max(initial=0.0)), np.finfo(float).tiny)
-    k_scale = max(float(np.abs(terms.K).max(initial=0.0)), np.finfo(float).tiny)
-    return float(np.abs(A_alt - A).max(initial=0.0)) / scale + terms.rounding / k_scale
+    truncation = TRUNCATION_SAFETY * float(np.abs(A_alt - A).max(initial=0.0))
+    return (truncation + NOISE_SIGMAS * noise) / scale + FORMULATION_ROUNDING

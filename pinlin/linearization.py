@@ -1,16 +1,31 @@
-"""``pinlin.linearize``: scene in, :class:`~pinlin.linear_model.LinearModel` out."""
+"""``pinlin.linearize`` and ``pinlin.operating_point``: scene in, model or point out.
+
+Both resolve the operating point the same way (:func:`resolve_operating_point`): a scene with
+constraints (loops, mimic couplings) or with ``solve = "positions"`` goes through the assembly
+and the constrained statics of :mod:`pinlin.equilibrium`; an open chain held by its inputs
+through :func:`pinlin.operating_point.hold_at_rest`.
+
+Every argument is checked before any work: a wrong type, a value out of range or an option that
+does not apply to the request (a step with analytic derivatives, a basis without loops, a
+penalty with the independent formulation) is an :class:`~pinlin.exceptions.ArgumentError`.
+"""
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Mapping
+from os import PathLike
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from .derivatives import BACKENDS
-from .equilibrium import require_equilibrium_support, solve_constrained
-from .exceptions import PinlinError, ShapeError
+from .conditioning import AccuracyWarning
+from .derivatives import BACKENDS, resolve_steps
+from .equilibrium import ConstrainedPoint, require_equilibrium_support, solve_constrained
+from .exceptions import ArgumentError, ShapeError
 from .formulations import (
+    BASES,
     FORMULATIONS,
     linearize_canonical,
     linearize_independent,
@@ -23,41 +38,120 @@ from .operating_point import OperatingPoint, configuration, hold_at_rest
 from .scene import Scene
 from .system import System
 
-
-def operating_point(system: System, *, q: np.ndarray | None = None,
-                    allow_non_equilibrium: bool | None = None,
-                    mass_inverse: np.ndarray | None = None) -> OperatingPoint:
-    """The operating point the scene asks for (``q`` replaces the whole configuration).
-
-    ``mass_inverse`` is M(q0)^-1 when the caller has it already.
-    """
-    q0 = _configuration(system, q)
-    spec = system.scene.operating_point
-    allow = spec.allow_non_equilibrium if allow_non_equilibrium is None else allow_non_equilibrium
-    return hold_at_rest(system, q0, allow_non_equilibrium=allow, mass_inverse=mass_inverse)
+#: A numerical model whose estimated relative error of A exceeds this gets an AccuracyWarning
+#: (fewer than ~6 significant digits, the level at which a condition estimate warns too).
+WARN_ERROR_ESTIMATE = 1e-6
 
 
-def _configuration(system: System, q: np.ndarray | None) -> np.ndarray:
-    """q0 from the scene, or the validated override ``q``."""
+def _system(scene: object) -> System:
+    """The system of a Scene, a System, or a scene file / URDF / bundled scene / robot name."""
+    if isinstance(scene, System):
+        return scene
+    if isinstance(scene, Scene):
+        return scene.system
+    if isinstance(scene, str | PathLike):
+        return Scene.resolve(scene).system
+    raise ArgumentError("scene", "expected a pinlin.Scene, a pinlin.System, or a scene file, "
+                                 "URDF, bundled scene or robot name (str or path), got "
+                                 f"{type(scene).__name__}")
+
+
+def _flag(name: str, value: object) -> bool | None:
+    """A boolean option (None: not given); strings such as "no" are refused, not truthy."""
+    if value is None or isinstance(value, bool | np.bool_):
+        return None if value is None else bool(value)
+    raise ArgumentError(name, f"expected True or False, got {value!r}")
+
+
+def _choice(name: str, value: object, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise ArgumentError(name, f"expected one of {', '.join(repr(c) for c in choices)}, got "
+                                  f"{value!r}")
+    return value
+
+
+def _configuration(system: System, q: object) -> np.ndarray:
+    """q0 from the scene, or the validated override ``q`` (size nq, finite, normalized)."""
     if q is None:
-        q0 = configuration(system)
-    else:
-        q0 = np.asarray(q, dtype=float)
-        if q0.shape != (system.nq,):
-            raise ShapeError(f"q must have nq = {system.nq} entries for scene "
-                             f"'{system.scene.name}', got shape {q0.shape}")
-        if not np.all(np.isfinite(q0)):
-            raise ShapeError("q contains NaN or inf")
-        if not pin.isNormalized(system.model, q0, 1e-6):
-            raise ShapeError("q is not normalized: its quaternion or (cos, sin) parts must have "
-                             "unit norm")
+        return configuration(system)
+    try:
+        q0 = np.array(q, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentError("q", f"expected {system.nq} numbers (the configuration of scene "
+                                 f"'{system.scene.name}'), got {q!r:.80}") from None
+    if q0.shape != (system.nq,):
+        raise ShapeError(f"q must have nq = {system.nq} entries for scene "
+                         f"'{system.scene.name}', got shape {q0.shape}")
+    if not np.all(np.isfinite(q0)):
+        raise ShapeError("q contains NaN or inf")
+    if not pin.isNormalized(system.model, q0, 1e-6):
+        raise ShapeError("q is not normalized: its quaternion or (cos, sin) parts must have "
+                         "unit norm")
     return q0
 
 
+def resolve_operating_point(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool,
+                            constrained: bool = False, mass_inverse: np.ndarray | None = None
+                            ) -> tuple[OperatingPoint, ConstrainedPoint | None]:
+    """The operating point about q0 and, where the constrained path ran, what the constrained
+    formulations need (``constrained``: take that path even for an open chain, as the penalty
+    and canonical formulations need its constraint point)."""
+    if system.constraints or constrained or system.scene.operating_point.solve != "inputs":
+        require_equilibrium_support(system)
+        return solve_constrained(system, q0, allow_non_equilibrium=allow_non_equilibrium)
+    return hold_at_rest(system, q0, allow_non_equilibrium=allow_non_equilibrium,
+                        mass_inverse=mass_inverse), None
+
+
+def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None = None,
+                    allow_non_equilibrium: bool | None = None,
+                    mass_inverse: np.ndarray | None = None) -> OperatingPoint:
+    """The operating point the scene asks for, resolved exactly as :func:`linearize` does
+    (loops assembled, constraint forces solved; ``q`` replaces the whole configuration).
+
+    ``mass_inverse`` is M(q0)^-1 when the caller has it already.
+    """
+    system = _system(scene)
+    allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
+    q0 = _configuration(system, q)
+    if allow is None:
+        allow = system.scene.operating_point.allow_non_equilibrium
+    return resolve_operating_point(system, q0, allow_non_equilibrium=allow,
+                                   mass_inverse=mass_inverse)[0]
+
+
+def _check_options(system: System, formulation: str, derivatives: str,
+                   step: float | Mapping[str, float] | None, basis: str | None,
+                   alpha: float | None, mu: float | None, omega: float | None) -> None:
+    """Refuse options that do not apply to the request, each alike."""
+    if step is not None:
+        if derivatives == "analytic":
+            raise ArgumentError("step", "a finite-difference step applies to derivatives "
+                                        "'fd3' and 'fd5'; the analytic derivatives take none")
+        resolve_steps(derivatives, step)
+    if alpha is not None or mu is not None or omega is not None:
+        penalty_parameters(alpha, mu, omega)  # bad values are errors whatever the formulation
+        if formulation == "independent":
+            raise ArgumentError("alpha" if alpha is not None else "mu" if mu is not None
+                                else "omega",
+                                "alpha, mu and omega set the penalty and canonical "
+                                "formulations; the independent formulation has no penalty")
+    if basis is not None:
+        _choice("basis", basis, BASES)
+        if formulation != "independent":
+            raise ArgumentError("basis", f"the {formulation} formulation keeps the dependent "
+                                         "coordinates; a basis of independent coordinates "
+                                         "applies to the independent formulation")
+        if not system.constraints:
+            raise ArgumentError("basis", f"scene '{system.scene.name}' has no loops or mimic "
+                                         "couplings: its joint coordinates are independent "
+                                         "already")
+
+
 def linearize(scene: Scene | System | str | Path, *, formulation: str = "independent",
-              derivatives: str = "analytic", step: float | None = None,
+              derivatives: str = "analytic", step: float | Mapping[str, float] | None = None,
               q: np.ndarray | None = None, allow_non_equilibrium: bool | None = None,
-              basis: str = "partitioned", alpha: float | None = None, mu: float | None = None,
+              basis: str | None = None, alpha: float | None = None, mu: float | None = None,
               omega: float | None = None, estimate_error: bool = True) -> LinearModel:
     """Linear state-space model of a scene about its operating point.
 
@@ -67,51 +161,65 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
         formulation: ``"independent"`` (chapter 9.1.1), ``"penalty"`` (9.1.2, dependent
             coordinates) or ``"canonical"`` (9.1.3, momenta and dependent coordinates).
         derivatives: ``"analytic"`` (Pinocchio), ``"fd3"`` or ``"fd5"`` (chapter 9.2).
-        step: Finite-difference step for ``fd3``/``fd5``: one number for all, or a table
-            ``{"q": [rad or m], "v": [rad/s or m/s], "u": [N*m or N]}``; default
-            ``pinlin.derivatives.DEFAULT_STEPS``.
-        estimate_error: With ``fd3``/``fd5``, also evaluate the companion formula and report
-            ``model.info["error_estimate"]`` (relative error of A; fd3 at 2x, fd5 at 1.5x cost).
+        step: Finite-difference step for ``fd3``/``fd5`` only: one number for all, or a table
+            ``{"q": [rad or m], "v": [rad/s or m/s], "u": [N*m or N]}``, each in
+            [1e-10, 0.1]; default ``pinlin.derivatives.DEFAULT_STEPS``.
+        estimate_error: With ``fd3``/``fd5``, also report ``model.info["error_estimate"]``
+            (relative error of A: truncation from the companion formula, rounding from the
+            measured noise of the dynamics; fd3 at ~2x, fd5 at ~1.5x the cost). An estimate
+            above 1e-6 gives an :class:`~pinlin.AccuracyWarning`.
         q: Full configuration (size nq) replacing the scene's operating point.
         allow_non_equilibrium: Override the scene's ``operating_point.allow_non_equilibrium``.
-        basis: Independent coordinates of a constrained system: ``"partitioned"`` (the
-            independent joints z) or ``"orthonormal"`` (an orthonormal nullspace basis of Phi_q).
+        basis: Independent coordinates of a constrained system (independent formulation only):
+            ``"partitioned"`` (the independent joints z, the default) or ``"orthonormal"`` (an
+            orthonormal nullspace basis of Phi_q).
         alpha, mu, omega: Penalty factor [kg (or kg*m^2) per constraint unit^2], damping ratio
-            [-] and natural frequency [rad/s] of the constraint violation (penalty, canonical);
-            defaults 1e7, 1.0, 10.0.
+            [-] and natural frequency [rad/s] of the constraint violation (penalty, canonical
+            only); defaults 1e7, 1.0, 10.0.
 
     Returns:
         The model, with x = [dq; v] (names ``q:<coordinate>``, ``v:<coordinate>``), inputs
         ``u:<coordinate>`` and the scene's outputs.
+
+    Raises:
+        ArgumentError: a wrong type or value, or an option that does not apply.
+        PinlinError: any other bad input (scene, URDF, operating point), by subclass.
     """
-    if isinstance(scene, str | Path):
-        scene = Scene.resolve(scene)
-    system = scene if isinstance(scene, System) else scene.system
-    if formulation not in FORMULATIONS:
-        raise PinlinError(f"unknown formulation '{formulation}'; expected one of "
-                          f"{', '.join(FORMULATIONS)}")
-    if derivatives not in BACKENDS:
-        raise PinlinError(f"unknown derivatives '{derivatives}'; expected one of "
-                          f"{', '.join(BACKENDS)}")
-    if alpha is not None or mu is not None or omega is not None:
-        penalty_parameters(alpha, mu, omega)  # bad values are errors whatever the formulation
-        if formulation == "independent":
-            raise PinlinError("alpha, mu and omega set the penalty and canonical formulations; "
-                              "the independent formulation has no penalty")
+    formulation = _choice("formulation", formulation, FORMULATIONS)
+    derivatives = _choice("derivatives", derivatives, BACKENDS)
+    allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
+    estimate = _flag("estimate_error", estimate_error)
+    system = _system(scene)
+    _check_options(system, formulation, derivatives, step, basis, alpha, mu, omega)
     q0 = _configuration(system, q)
-    if allow_non_equilibrium is None:
-        allow_non_equilibrium = system.scene.operating_point.allow_non_equilibrium
-    if (system.constraints or formulation != "independent"
-            or system.scene.operating_point.solve != "inputs"):
-        require_equilibrium_support(system)
-        op, cp = solve_constrained(system, q0, allow_non_equilibrium=allow_non_equilibrium)
+    if allow is None:
+        allow = system.scene.operating_point.allow_non_equilibrium
+    numeric = {"derivatives": derivatives, "step": step, "estimate_error": bool(estimate)}
+    if system.constraints or formulation != "independent" \
+            or system.scene.operating_point.solve != "inputs":
+        op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
+                                         constrained=True)
+        assert cp is not None
         if formulation == "independent":
-            return linearize_reduced(system, op, cp, derivatives=derivatives, step=step,
-                                     basis=basis, estimate_error=estimate_error)
-        build = linearize_penalty if formulation == "penalty" else linearize_canonical
-        return build(system, op, cp, derivatives=derivatives, step=step, alpha=alpha, mu=mu,
-                     omega=omega, estimate_error=estimate_error)
-    Minv = system.mass_inverse(q0)  # shared by the operating point and the model
-    op = hold_at_rest(system, q0, allow_non_equilibrium=allow_non_equilibrium, mass_inverse=Minv)
-    return linearize_independent(system, op, derivatives=derivatives, step=step,
-                                 mass_inverse=Minv, estimate_error=estimate_error)
+            model = linearize_reduced(system, op, cp, basis=basis or "partitioned", **numeric)
+        else:
+            build = linearize_penalty if formulation == "penalty" else linearize_canonical
+            model = build(system, op, cp, alpha=alpha, mu=mu, omega=omega, **numeric)
+    else:
+        Minv = system.mass_inverse(q0)  # shared by the operating point and the model
+        op, _ = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
+                                        mass_inverse=Minv)
+        model = linearize_independent(system, op, mass_inverse=Minv, **numeric)
+    _warn_inaccurate(model)
+    return model
+
+
+def _warn_inaccurate(model: LinearModel) -> None:
+    """AccuracyWarning when a numerical model's error estimate exceeds WARN_ERROR_ESTIMATE."""
+    est = model.info.get("error_estimate")
+    if est is not None and est > WARN_ERROR_ESTIMATE:
+        steps = ", ".join(f"{k} {v:g}" for k, v in model.info.get("step", {}).items())
+        warnings.warn(AccuracyWarning(
+            f"model '{model.name}': {model.info['derivatives']} derivatives with steps "
+            f"({steps}) have an estimated relative error of {est:.1e} in A; the default steps "
+            "or derivatives='analytic' are more accurate", 1.0 / est), stacklevel=3)

@@ -39,22 +39,70 @@ def test_truncation_error_has_the_formula_order(ur5, backend, steps, order):
 @pytest.mark.parametrize("backend, h", [("fd3", 1e-2), ("fd3", 1e-5), ("fd5", 5e-2),
                                         ("fd5", 1e-3)])
 def test_error_estimate_tracks_the_true_error(ur5, backend, h):
-    """The estimate reported with every numerical model is within a small factor of the error
-    against the analytic model, or at most a rounding-level bound when that error is tiny."""
+    """The estimate reported with every numerical model bounds the error against the analytic
+    model and stays within a small factor of it, or at most a rounding-level bound when that
+    error is tiny."""
     scene, ref = ur5
     true, model = _error(scene, ref, backend, h)
     est = model.info["error_estimate"]
-    assert est >= 0.3 * true, (est, true)
+    assert true <= est, (est, true)
     assert est <= 30 * true + 1e-9, (est, true)
 
 
-def test_error_estimate_on_a_closed_loop_and_penalty():
-    model = pinlin.linearize(URDF_DIR / "four_bar.toml", derivatives="fd3")
-    exact = pinlin.linearize(URDF_DIR / "four_bar.toml")
-    true = np.abs(model.A - exact.A).max() / np.abs(exact.A).max()
-    assert true <= 3 * model.info["error_estimate"] + 1e-14
+BOUND_CASES = [("four_bar", "independent"), ("four_bar", "penalty"), ("four_bar", "canonical"),
+               ("slider_crank", "independent"), ("delta", "independent"),
+               ("ur5_arm", "independent"), ("rotating_double_pendulum", "independent"),
+               ("double_pendulum", "independent")]
+
+
+@pytest.mark.parametrize("name, formulation", BOUND_CASES)
+def test_error_estimate_bounds_the_true_error(name, formulation):
+    """The estimate is an upper bound over steps, systems and formulations: loops (whose
+    constraint forces add rounding noise), springs and damping (C differenced too), steady
+    rotation, and a hanging pendulum whose dynamics vanish at q0 (noise grows away from it).
+
+    Observed in validation/reports/error_estimate.md (396 combinations, 1e-10 <= h <= 0.1, with
+    and without OPENBLAS_CORETYPE=Haswell OPENBLAS_L2_SIZE=512): true / estimate <= 0.68, a
+    margin of 1.47x; the estimate is 1.5x the truncation estimate by construction, so where
+    truncation dominates the ratio sits at ~0.67 on every machine, and where rounding
+    dominates it is 0.01-0.3."""
+    import warnings
+
+    scene = pinlin.Scene.load(URDF_DIR / f"{name}.toml")
+    exact = pinlin.linearize(scene, formulation=formulation)
+    for backend in ("fd3", "fd5"):
+        for h in (1e-8, 1e-5, 1e-3, 3e-2):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+                model = pinlin.linearize(scene, formulation=formulation, derivatives=backend,
+                                         step=h)
+            true = np.abs(model.A - exact.A).max() / np.abs(exact.A).max()
+            assert true <= model.info["error_estimate"], (backend, h, true, model.info)
+
+
+def test_error_estimate_of_the_default_penalty_model():
     pen = pinlin.linearize(URDF_DIR / "four_bar.toml", formulation="penalty", derivatives="fd5")
     assert 0 < pen.info["error_estimate"] < 1e-8
+
+
+@pytest.mark.parametrize("step, words", [
+    (6.283185307179586, "outside [1e-10, 0.1]"), (1e10, "outside [1e-10, 0.1]"),
+    (1e-300, "outside [1e-10, 0.1]"), (0.0, "positive number"), (-1.0, "positive number"),
+    (float("nan"), "positive number"), ("1e-3", "expected a number"), (True, "expected a number"),
+    ({"q": 1.0}, "outside [1e-10, 0.1]"), ({"w": 1e-3}, "unknown step key 'w'"),
+])
+def test_steps_outside_the_range_of_the_formulas_are_refused(step, words):
+    """A step of 2 pi gives A = 0 on a revolute joint with a tiny 'estimate'; 1e-300 leaves
+    q0 + h = q0. Steps outside [1e-10, 0.1] are refused before any work."""
+    with pytest.raises(pinlin.ArgumentError, match="argument 'step'") as info:
+        pinlin.linearize(URDF_DIR / "pendulum.toml", derivatives="fd5", step=step)
+    assert words in str(info.value)
+
+
+def test_large_estimated_error_is_warned():
+    with pytest.warns(pinlin.AccuracyWarning, match="estimated relative error"):
+        model = pinlin.linearize(URDF_DIR / "double_pendulum.toml", derivatives="fd3", step=0.1)
+    assert model.info["error_estimate"] > 1e-6
 
 
 def test_steps_per_variable():

@@ -30,9 +30,9 @@ import scipy.linalg as sla
 
 from ..assembly import projection
 from ..conditioning import warn_if_ill_conditioned
-from ..derivatives import error_estimate, second_order_terms
+from ..derivatives import error_estimate, propagated_noise, second_order_terms
 from ..equilibrium import ConstrainedPoint
-from ..exceptions import PinlinError
+from ..exceptions import ArgumentError, PinlinError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
 from .independent import output_matrices
@@ -146,12 +146,15 @@ def _alt(terms) -> tuple[np.ndarray, np.ndarray] | None:
     return K_alt, (C_alt if C_alt is not None else np.zeros_like(terms.M))
 
 
-def _numeric_info(terms, A: np.ndarray, A_alt: np.ndarray | None) -> dict:
+def _numeric_info(terms, A: np.ndarray, A_alt: np.ndarray | None,
+                  rounding: float = 0.0) -> dict:
+    """Steps and error estimate; ``rounding`` is the rounding bound of K and C pushed into A
+    [units of A]."""
     out: dict = {}
     if terms.steps is not None:
         out["step"] = dict(terms.steps)
     if A_alt is not None:
-        out["error_estimate"] = error_estimate(A, A_alt, terms)
+        out["error_estimate"] = error_estimate(A, A_alt, rounding)
     return out
 
 
@@ -175,7 +178,12 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     warn_if_ill_conditioned("reduced mass matrix", mass_condition, system.scene.name,
                             stacklevel=5)
     alt = _alt(terms)
-    A_alt = None if alt is None else first_order(Mz, R.T @ alt[1] @ R, R.T @ alt[0] @ R, Bz)[0]
+    A_alt = rounding = None
+    if alt is not None:
+        A_alt = first_order(Mz, R.T @ alt[1] @ R, R.T @ alt[0] @ R, Bz)[0]
+        # dA = -Mz^-1 R^T [dK, dC] R: rounding in K, C amplified by Mz^-1 R^T and R.
+        X = sla.solve(Mz, R.T, assume_a="pos")
+        rounding = max(propagated_noise(X, sigma, R) for sigma in terms.rounding)
     if basis == "partitioned":
         coords = [system.coordinate_names[i] for i in cp.partition.independent]
     else:
@@ -190,7 +198,7 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
         Cout = np.hstack([Cout[:, :nv] @ R, Cout[:, nv:] @ R])
     info = _info(system, op, cp, "independent", terms.backend, basis=basis,
                  velocity_terms=bool(np.any(Cz)), R=R.tolist(),
-                 **_numeric_info(terms, A, A_alt))
+                 **_numeric_info(terms, A, A_alt, rounding or 0.0))
     info["condition"]["mass_matrix"] = mass_condition
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], B.shape[1])),
                        state_names=states, input_names=system.input_names,
@@ -205,11 +213,11 @@ def penalty_parameters(alpha: float | None, mu: float | None, omega: float | Non
     for key, value in (("alpha", alpha), ("mu", mu), ("omega", omega)):
         v = PENALTY_DEFAULTS[key] if value is None else value
         try:
-            v = float(v)
-        except (TypeError, ValueError):
-            raise PinlinError(f"penalty {key} must be a number, got {value!r}") from None
+            v = float(v) if not isinstance(v, bool | str) else float("nan")
+        except (TypeError, ValueError, OverflowError):
+            raise ArgumentError(key, f"penalty {key} must be a number, got {value!r}") from None
         if not (np.isfinite(v) and v > 0):
-            raise PinlinError(f"penalty {key} must be a finite number > 0, got {value!r}")
+            raise ArgumentError(key, f"penalty {key} must be a finite number > 0, got {value!r}")
         out.append(v)
     return out[0], out[1], out[2]
 
@@ -243,11 +251,18 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     C = terms.C if terms.C is not None else np.zeros_like(terms.M)
     A, B = penalty_first_order(terms.M, C, terms.K, cp.jacobian, S, alpha, mu, omega)
     alt = _alt(terms)
-    A_alt = None if alt is None else penalty_first_order(terms.M, alt[1], alt[0], cp.jacobian,
-                                                         S, alpha, mu, omega)[0]
+    A_alt, rounding = None, 0.0
+    if alt is not None:
+        A_alt = penalty_first_order(terms.M, alt[1], alt[0], cp.jacobian, S, alpha, mu,
+                                    omega)[0]
+        # dA = -M_p^-1 [dK, dC]; M_p^-1 from the same stable elimination (B of Bu = I).
+        n = terms.M.shape[0]
+        Mp_inv = penalty_first_order(terms.M, C, terms.K, cp.jacobian, np.eye(n), alpha, mu,
+                                     omega)[1][n:]
+        rounding = max(propagated_noise(Mp_inv, sigma) for sigma in terms.rounding)
     Cout, D, out_names, y0 = output_matrices(system, op)
     info = _info(system, op, cp, "penalty", terms.backend, alpha=alpha, mu=mu,
-                 omega=omega, **_numeric_info(terms, A, A_alt))
+                 omega=omega, **_numeric_info(terms, A, A_alt, rounding))
     return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names, M=Mp,
                        C_damp=Cp, K=Kp, Bu=S, G=cp.jacobian, operating_point=op.with_outputs(y0),
@@ -270,11 +285,16 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
 
     A, lu = state_matrix(Cp, Kp)
     B = sla.lu_solve(lu, np.vstack([S, np.zeros_like(S)]))
-    A_alt = None
+    A_alt, rounding = None, 0.0
     alt = _alt(terms)
     if alt is not None:
         C0 = terms.C if terms.C is not None else Z
         A_alt = state_matrix(Cp + alt[1] - C0, Kp + alt[0] - terms.K)[0]
+        # A = E^-1 F: dK enters F (dA = -E^-1[:, :n] dK in the q columns), dC enters E
+        # (dA = -E^-1[:, :n] dC A[n:]).
+        X = sla.lu_solve(lu, np.vstack([eye, Z]))
+        rounding = (propagated_noise(X, terms.rounding[0])
+                    + propagated_noise(X, terms.rounding[1], A[n:]))
     Cfull, D, out_names, y0 = output_matrices(system, op)
     # Outputs read dq and v; in (p, q): dq = q, v = M_p^-1 p.
     Cout = np.hstack([Cfull[:, n:] @ np.linalg.inv(Mp), Cfull[:, :n]])
@@ -283,7 +303,7 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     if system.outputs is None:
         Cout, out_names, y0 = np.eye(2 * n), states, np.zeros(2 * n)
     info = _info(system, op, cp, "canonical", terms.backend, alpha=alpha, mu=mu,
-                 omega=omega, **_numeric_info(terms, A, A_alt))
+                 omega=omega, **_numeric_info(terms, A, A_alt, rounding))
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
                        state_names=states, input_names=system.input_names,
                        output_names=out_names, G=cp.jacobian,

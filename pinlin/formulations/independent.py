@@ -18,7 +18,7 @@ import pinocchio as pin
 
 from ..arrays import read_only
 from ..conditioning import trace_condition, warn_if_ill_conditioned
-from ..derivatives import error_estimate, second_order_terms
+from ..derivatives import error_estimate, propagated_noise, second_order_terms
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
 from ..system import System
@@ -96,7 +96,10 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         A_alt[nv:, :nv] = -(Minv @ K_alt)
         if C_alt is not None:
             A_alt[nv:, nv:] = -(Minv @ C_alt)
-        info["error_estimate"] = error_estimate(A, A_alt, terms)
+        # A's lower block row is -M^-1 [K, C]: rounding in K and C is amplified by M^-1.
+        sigma_K, sigma_C = terms.rounding
+        rounding = max(propagated_noise(Minv, sigma_K), propagated_noise(Minv, sigma_C))
+        info["error_estimate"] = error_estimate(A, A_alt, rounding)
     return LinearModel.assembled(
         A=read_only(A), B=read_only(B), C=read_only(C), D=read_only(D),
         state_names=system.state_names, input_names=system.input_names, output_names=out_names,
