@@ -222,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--step", type=float, default=None,
                      help="finite-difference step for fd3/fd5, all variables [rad, m, rad/s, "
                           "m/s, N*m, N]; default: per variable, see the README")
-    lin.add_argument("--basis", choices=BASES, default="partitioned",
+    lin.add_argument("--basis", choices=BASES, default=None,
                      help="independent coordinates of a mechanism with loops")
     lin.add_argument("--alpha", type=float, default=None,
                      help=f"penalty factor (penalty, canonical; default "
