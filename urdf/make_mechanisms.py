@@ -54,6 +54,22 @@ def planar_rod(name: str, mass: float, length: float) -> str:
     return link(name, mass, f"{length / 2:.12g} 0 0", rod_inertia(mass, length, "x"))
 
 
+def four_bar_parts(a: float, b: float, c: float, d: float,
+                   masses: dict[str, float]) -> list[str]:
+    """Links and joints of a planar four-bar: crank a, coupler b, rocker c, ground d [m]."""
+    return [
+        link("ground"), planar_rod("crank_link", masses["crank"], a),
+        planar_rod("coupler_link", masses["coupler"], b),
+        planar_rod("rocker_link", masses["rocker"], c),
+        link("coupler_tip"), link("rocker_tip"),
+        joint("crank", "revolute", "ground", "crank_link", axis="0 -1 0"),
+        joint("coupler", "revolute", "crank_link", "coupler_link", f"{a} 0 0", "0 -1 0"),
+        joint("coupler_tip_fixed", "fixed", "coupler_link", "coupler_tip", f"{b} 0 0"),
+        joint("rocker", "revolute", "ground", "rocker_link", f"{d} 0 0", "0 -1 0"),
+        joint("rocker_tip_fixed", "fixed", "rocker_link", "rocker_tip", f"{c} 0 0"),
+    ]
+
+
 def four_bar() -> None:
     a, b, c, d = 0.2, 0.5, 0.4, 0.45
     m = {"crank": 0.4, "coupler": 1.0, "rocker": 0.8}
@@ -62,16 +78,7 @@ def four_bar() -> None:
                f"a = {a} m ({m['crank']} kg),\n     coupler b = {b} m ({m['coupler']} kg), rocker "
                f"c = {c} m ({m['rocker']} kg): a crank-rocker (Grashof).\n     Loop: point "
                "coupler_tip = rocker_tip (the y row is redundant).")
-    write("four_bar", comment, [
-        link("ground"), planar_rod("crank_link", m["crank"], a),
-        planar_rod("coupler_link", m["coupler"], b), planar_rod("rocker_link", m["rocker"], c),
-        link("coupler_tip"), link("rocker_tip"),
-        joint("crank", "revolute", "ground", "crank_link", axis="0 -1 0"),
-        joint("coupler", "revolute", "crank_link", "coupler_link", f"{a} 0 0", "0 -1 0"),
-        joint("coupler_tip_fixed", "fixed", "coupler_link", "coupler_tip", f"{b} 0 0"),
-        joint("rocker", "revolute", "ground", "rocker_link", f"{d} 0 0", "0 -1 0"),
-        joint("rocker_tip_fixed", "fixed", "rocker_link", "rocker_tip", f"{c} 0 0"),
-    ])
+    write("four_bar", comment, four_bar_parts(a, b, c, d, m))
 
 
 def slider_crank() -> None:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pinocchio as pin
 import scipy.linalg as sla
 
 from ..assembly import projection
@@ -164,6 +165,61 @@ def _input_matrix(system, terms) -> np.ndarray:
     return system.input_matrix if terms.Bu is None else terms.Bu
 
 
+#: The model's sensitivity to where the assembly put the operating point is measured when the
+#: dependent-coordinate Jacobian's condition exceeds SENSITIVITY_CHECK (cheap otherwise: never
+#: measured), and warned about above SENSITIVITY_WARN (relative change of A).
+SENSITIVITY_CHECK, SENSITIVITY_WARN = 1e3, 1e-6
+
+
+def assembly_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint,
+                         A: np.ndarray) -> tuple[float, float]:
+    """Relative change of the reduced A between configurations the assembly cannot tell apart.
+
+    Assembly stops at max |Phi| <= ASSEMBLY_TOL (or at the residual reached, if larger). Along
+    the right singular vector w of Phi_d for its smallest singular value s_min, every
+    configuration within d = tol / s_min of q0 (z held) satisfies that test as well as q0
+    does, so the operating point is known only to within d there: near a fold (a crank driven
+    to its limit) d grows like the condition number of Phi_d and the model can change by O(1)
+    across it, though the condition number alone stays moderate. The model is rebuilt (analytic
+    terms, constraint forces and inputs held) at q0 -/+ d w and compared with A.
+
+    Returns:
+        (max |A(+) - A(-)| / (2 max |A|), d [rad or m]).
+    """
+    from ..assembly import ASSEMBLY_TOL
+
+    part, G = cp.partition, cp.jacobian
+    dep = part.dependent
+    _, sv, vt = np.linalg.svd(G[:, dep])
+    tol = max(ASSEMBLY_TOL, float(np.abs(system.constraints.residual(op.q)[part.rows]).max()))
+    d = tol / sv[-1]
+    w = np.zeros(system.nv)
+    w[dep] = vt[-1]
+    models = []
+    for sign in (-1.0, 1.0):
+        q = pin.integrate(system.model, op.q, sign * d * w)
+        moved = OperatingPoint.trusted(**{**op.__dict__, "q": q})
+        terms = second_order_terms(system, moved, "analytic")
+        jac = system.constraints.jacobian(q)[part.rows]
+        R = projection(jac, part)
+        C = terms.C if terms.C is not None else np.zeros_like(terms.M)
+        models.append(first_order(R.T @ terms.M @ R, R.T @ C @ R, R.T @ terms.K @ R,
+                                  R.T @ system.input_matrix)[0])
+    change = float(np.abs(models[1] - models[0]).max()) / (2 * float(np.abs(A).max()))
+    return change, d
+
+
+def _warn_sensitive(system, change: float, d: float) -> None:
+    if change > SENSITIVITY_WARN:
+        warnings.warn(AccuracyWarning(
+            f"model '{system.scene.name}': the operating point is at or near a singular "
+            f"position of the mechanism: configurations the assembly cannot tell apart (within "
+            f"{d:.1e} rad or m of q0 along the dependent coordinates) give state matrices "
+            f"{change:.1e} (relative) apart; the model there is not reliable (move q0 away "
+            "from the limit, or name other independent coordinates)", 1.0 / change),
+            stacklevel=5)
+
+
 def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
                       derivatives: str = "analytic", step=None, basis: str = "partitioned",
                       estimate_error: bool = True) -> LinearModel:
@@ -202,6 +258,10 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
                  velocity_terms=bool(np.any(Cz)), R=R.tolist(),
                  **_numeric_info(terms, A, A_alt, rounding or 0.0))
     info["condition"]["mass_matrix"] = mass_condition
+    if cp.partition.condition > SENSITIVITY_CHECK:
+        change, d = assembly_sensitivity(system, op, cp, A)
+        info["condition"]["operating_point_sensitivity"] = change
+        _warn_sensitive(system, change, d)
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], B.shape[1])),
                        state_names=states, input_names=system.input_names,
                        output_names=out_names, M=Mz, C_damp=Cz, K=Kz, Bu=Bz,

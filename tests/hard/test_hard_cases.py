@@ -121,6 +121,59 @@ def test_four_bar_near_toggle(delta):
     assert cond > 0.1 / math.sqrt(delta)  # the estimate sees the singularity coming
 
 
+def _non_grashof_four_bar(tmp_path) -> tuple[dict, float, float, float]:
+    """A triple-rocker four-bar (a = 0.6, b = 0.4, c = 0.45, d = 0.3 m: s + l > p + q, so the
+    crank cannot turn fully). Returns the scene data, the crank's limit angle (coupler and
+    rocker in line: |A O4| = b + c, law of cosines) and the coupler and rocker angles there."""
+    import sys
+
+    sys.path.insert(0, str(URDF_DIR))
+    import make_mechanisms as mk
+
+    a, b, c, d = 0.6, 0.4, 0.45, 0.3
+    parts = mk.four_bar_parts(a, b, c, d, {"crank": 0.4, "coupler": 1.0, "rocker": 0.8})
+    path = tmp_path / "non_grashof.urdf"
+    path.write_text('<?xml version="1.0"?>\n<robot name="non_grashof">\n' + "\n".join(parts)
+                    + "\n</robot>\n")
+    limit = math.acos((a * a + d * d - (b + c) ** 2) / (2 * a * d))
+    ax, az = a * math.cos(limit), a * math.sin(limit)
+    ux, uz = (ax - d) / (b + c), az / (b + c)
+    rocker = math.atan2(uz, ux)
+    coupler = math.atan2(-uz, -ux) - limit
+    data = {"urdf": str(path), "effects": {"gravity": [0, 0, -9.81]},
+            "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
+            "inputs": {"actuated": ["crank"]}}
+    return data, limit, coupler, rocker
+
+
+def test_crank_driven_to_its_limit_is_warned(tmp_path):
+    """A non-Grashof four-bar whose crank is driven exactly to its limit: there the mechanism
+    locks (the frequency grows like distance^-1/4 and is infinite at the limit), so any finite
+    model is an artefact of where the assembly stopped. The Jacobian's condition stays below
+    1e6 (measured 9e5), so only the measured sensitivity of A to configurations the assembly
+    cannot tell apart warns (measured 1.4e-5 relative, warned above 1e-6). A micro-radian
+    away the same measure is 3e-8 (condition 1.8e3) and nothing is warned."""
+    data, limit, coupler, rocker = _non_grashof_four_bar(tmp_path)
+    guess = {"coupler": coupler, "rocker": rocker}
+    results = {}
+    for distance in (1e-2, 1e-4, 1e-6, 1e-9, 0.0):  # continuation towards the limit
+        point = {"q": {"crank": limit - distance, **guess}, "independent": ["crank"]}
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = pinlin.linearize(pinlin.Scene.from_dict({**data, "operating_point": point}))
+        guess = {"coupler": model.operating_point.q[1], "rocker": model.operating_point.q[2]}
+        results[distance] = (model, [w for w in caught
+                                     if issubclass(w.category, pinlin.AccuracyWarning)])
+    near, near_warnings = results[1e-6]
+    assert not near_warnings
+    assert near.info["condition"]["operating_point_sensitivity"] < 1e-6
+    at, at_warnings = results[0.0]
+    assert at.info["condition"]["constraint_jacobian"] < 1e6
+    assert at.info["condition"]["operating_point_sensitivity"] > 1e-6
+    assert any("singular position" in str(w.message) for w in at_warnings)
+    _finite(at)
+
+
 def test_floating_base_upside_down():
     """A floating quadruped turned upside down (180 degrees about x, quaternion with w = 0)
     in free fall: A matches finite differences of aba on the manifold."""
