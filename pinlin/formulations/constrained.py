@@ -275,9 +275,12 @@ def penalty_parameters(alpha: float | None, mu: float | None, omega: float | Non
     for key, value in (("alpha", alpha), ("mu", mu), ("omega", omega)):
         v = PENALTY_DEFAULTS[key] if value is None else value
         try:
-            v = float(v) if not isinstance(v, bool | str) else float("nan")
+            if isinstance(v, bool | str):
+                raise TypeError
+            v = float(v)
         except (TypeError, ValueError, OverflowError):
-            raise ArgumentError(key, f"penalty {key} must be a number, got {value!r}") from None
+            raise ArgumentError(key, f"penalty {key} must be a number, got {value!r:.40}"
+                                ) from None
         if not (np.isfinite(v) and v > 0):
             raise ArgumentError(key, f"penalty {key} must be a finite number > 0, got {value!r}")
         out.append(v)
