@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import check_folder_target, check_ours, make_folder, write_atomic, write_text_atomic
+
 #: Steps h (fd3, fd5) and eps (MuJoCo), half-decades from 1e-2 to 1e-9.
 STEPS = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9,
          1e-9)
@@ -35,6 +37,12 @@ FINE = tuple(10.0 ** (k / 10) for k in range(-5, 6) if k != 0)
 ROBOTS = ("ur5", "panda", "kinova", "talos_arm", "solo12", "talos")
 MECHANISMS = ("four_bar", "delta")
 HUMANOID = "talos"
+#: Most timing repeats per point: each repeat lasts at least 20 ms, and a run times about 130
+#: points per system.
+MAX_REPEATS = 1000
+#: First line of the report; an existing file of that name that does not start so is the
+#: user's and is never replaced.
+REPORT_MARKER = "# What accuracy costs in time"
 
 
 @dataclass
@@ -117,6 +125,14 @@ class Progress:
         if self.done == self.total:
             sys.stderr.write("\n")
 
+    def close(self) -> None:
+        """End a bar left part-drawn (a run stopped by an error), so that the error message
+        starts on a line of its own."""
+        if self.enabled and 0 < self.done < self.total:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+            self.enabled = False
+
 
 def check_scene(name: str):
     """(scene, kind) used by the benchmark and the validation: a scene file, a bundled scene or
@@ -141,6 +157,13 @@ def check_scene(name: str):
     return scene, "fixed base"
 
 
+def report_label(name: str) -> str:
+    """The name a system has in the report and its plot file: a scene or URDF file's stem,
+    else the bundled scene or robot name."""
+    path = Path(name)
+    return path.stem if path.suffix in (".toml", ".urdf") else path.name
+
+
 def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
     """All methods on one system."""
     from . import mjcf
@@ -151,7 +174,7 @@ def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
     ref = linearize(scene)
     scale = float(np.abs(ref.A).max())
     t_an = median_time(lambda: linearize(scene), repeats)
-    result = SystemResult(name, system.nv, kind, t_an)
+    result = SystemResult(report_label(name), system.nv, kind, t_an)
 
     def error(A: np.ndarray) -> float:
         return float(np.abs(A - ref.A).max()) / scale
@@ -218,7 +241,7 @@ def _aba_agreement(system, ref) -> float:
         return float("nan")
     op, nv = ref.operating_point, system.nv
     tau = system.input_matrix @ op.u
-    data = system.model.createData()
+    data = pin.Data(system.model)
     pin.computeABADerivatives(system.model, data, op.q, op.v, tau)
     A = np.zeros_like(ref.A)
     A[:nv, nv:] = np.eye(nv)
@@ -330,8 +353,8 @@ def report(results: list[SystemResult], out: Path, command: str) -> str:
         lines.append(f"\nanalytic: {_fmt_time(r.analytic_time)} ms, error estimate "
                      f"{r.analytic_error:.1e}" + (f". MuJoCo: {r.note}" if r.note else "") + "\n")
     text = "\n".join(lines) + "\n"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "accuracy_vs_time.md").write_text(text)
+    make_folder(out)
+    write_text_atomic(out / "accuracy_vs_time.md", text)
     return text
 
 
@@ -357,8 +380,7 @@ def plot(results: list[SystemResult], out: Path) -> None:
     import matplotlib.pyplot as plt
     import matplotlib.ticker
 
-    folder = out / "accuracy_vs_time"
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = make_folder(out / "accuracy_vs_time")
     style = {"fd3": "o-", "fd5": "s-", "mujoco forward": "v--", "mujoco centered": "^--"}
     for r in results:
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -380,24 +402,62 @@ def plot(results: list[SystemResult], out: Path) -> None:
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(folder / f"{r.name}.png", dpi=90)
-        plt.close(fig)
+        try:
+            write_atomic(folder / f"{r.name}.png",
+                         lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=90))
+        finally:
+            plt.close(fig)
 
 
 def run(systems: list[str], repeats: int = 5, out_dir: str | Path = "validation/reports",
         progress: bool = True, command: str = "pinlin bench") -> list[SystemResult]:
-    """Measure ``systems`` (robot or bundled scene names), write the report and plots."""
-    from .exceptions import PinlinError
+    """Measure ``systems`` (robot or bundled scene names, scene or URDF files), write the
+    report and plots (atomically) into ``out_dir``.
 
-    if repeats < 1:
-        raise PinlinError(f"--repeats must be >= 1, got {repeats}")
+    Everything that can be refused is refused before the long run and before anything is
+    written: ``repeats``, the systems, an output folder that is a file, an existing
+    ``accuracy_vs_time.md`` that pinlin did not write.
+
+    Args:
+        repeats: Timing repeats per point, 1 to :data:`MAX_REPEATS`.
+
+    Raises:
+        ArgumentError: ``repeats`` or ``systems`` out of range.
+        UnknownRobotError, SceneError, ...: a system that does not resolve to a scene.
+        ModelFileError: the output folder cannot be used, or a file cannot be written.
+    """
+    from .exceptions import ArgumentError
+
+    if (isinstance(repeats, bool) or not isinstance(repeats, int | np.integer)
+            or not 1 <= repeats <= MAX_REPEATS):
+        raise ArgumentError("repeats", f"--repeats must be >= 1 and <= {MAX_REPEATS} (timing "
+                                       f"repeats per point), got {repeats!r}")
+    if isinstance(systems, str) or not all(isinstance(n, str) for n in systems):
+        raise ArgumentError("systems", "expected a list of robot or scene names")
+    systems = list(dict.fromkeys(systems))  # a system named twice is measured once
+    if not systems:
+        raise ArgumentError("systems", "name at least one robot or scene")
+    labels: dict[str, str] = {}
+    for name in systems:
+        key = report_label(name)
+        if key in labels:
+            raise ArgumentError("systems", f"'{labels[key]}' and '{name}' would both be "
+                                           f"reported as '{key}'")
+        labels[key] = name
+    out = check_folder_target(out_dir, "out_dir")
+    check_folder_target(out / "accuracy_vs_time", "out_dir")
+    check_ours(out / "accuracy_vs_time.md", REPORT_MARKER)
+    for key in labels:
+        check_ours(out / "accuracy_vs_time" / f"{key}.png", b"\x89PNG")
     for name in systems:  # fail before the long run, not in the middle of it
         check_scene(name)
     bar = Progress(len(systems) * 4 * (len(STEPS) + 1), progress)
-    results = [measure(name, repeats, bar) for name in systems]
-    out = Path(out_dir)
+    try:
+        results = [measure(name, int(repeats), bar) for name in systems]
+    finally:
+        bar.close()
+    plot(results, out)  # the plots first: the report that links them is the last write
     text = report(results, out, command)
-    plot(results, out)
     print(text)
     return results
 

@@ -3,18 +3,159 @@
 A failure half-way (disk full, ``ulimit -f``, an exception while serializing) leaves an existing
 file untouched and no partial file behind: the rename is the only step that changes what a
 reader sees, and ``os.replace`` is atomic within one file system.
+
+The checks here (:func:`check_file_target`, :func:`check_folder_target`, :func:`check_ours`)
+let a command refuse a bad output path before any work, so that bad input writes nothing.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
+import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
-from .exceptions import ModelFileError
+from .exceptions import ArgumentError, ModelFileError
+
+
+def as_path(path: Any, argument: str = "path") -> Path:
+    """``path`` as a :class:`~pathlib.Path`.
+
+    Raises:
+        ArgumentError: not a ``str`` or ``os.PathLike``, empty, or with a NUL character.
+    """
+    if isinstance(path, bytes) or not isinstance(path, str | os.PathLike):
+        raise ArgumentError(argument, "expected a file path (str or os.PathLike), got "
+                                      f"{type(path).__name__}")
+    text = os.fspath(path)
+    if isinstance(text, bytes):
+        raise ArgumentError(argument, "expected a file path as text, got a bytes path")
+    if not text:
+        raise ArgumentError(argument, "expected a file name, got an empty string")
+    if "\0" in text:
+        raise ArgumentError(argument, f"the path {text!r} contains a NUL character")
+    return Path(text)
+
+
+def _folder_of(path: Path) -> Path:
+    return path.parent if str(path.parent) else Path(".")
+
+
+def _follow_link(path: Path) -> Path:
+    """The file a symbolic link points to (writing replaces the target, not the link)."""
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def check_file_target(path: str | Path, what: str = "write") -> Path:
+    """Refuse a file path that cannot be written, before any work; returns it as a Path.
+
+    Raises:
+        ArgumentError: ``path`` is not a path.
+        ModelFileError: it names a folder, its folder does not exist, or a component of its
+            folder is a file.
+    """
+    path = as_path(path)
+    target = _follow_link(path)
+    if target.is_dir():
+        raise ModelFileError(path, f"cannot {what}: it is a folder, expected a file name")
+    folder = _folder_of(target)
+    if not folder.is_dir():
+        blocker = _existing_non_folder(folder)
+        if blocker is not None:
+            raise ModelFileError(path, f"cannot {what}: '{blocker}' is a file, not a folder")
+        raise ModelFileError(path, f"cannot {what}: folder '{folder}' does not exist")
+    return path
+
+
+def _existing_non_folder(folder: Path) -> Path | None:
+    """The first component of ``folder`` that exists and is not a folder, if any."""
+    for part in reversed([folder, *folder.parents]):
+        if part.exists() and not part.is_dir():
+            return part
+    return None
+
+
+def check_folder_target(folder: str | Path, argument: str = "out_dir") -> Path:
+    """Refuse an output folder that is a file or cannot be created, before any work.
+
+    A folder that does not exist yet is fine when it can be created (no component of it is a
+    file); nothing is created here.
+
+    Raises:
+        ArgumentError: ``folder`` is not a path or is empty.
+        ModelFileError: it, or a component of it, is a file.
+    """
+    folder = as_path(folder, argument)
+    if folder.is_dir():
+        return folder
+    blocker = _existing_non_folder(folder)
+    if blocker == folder:
+        raise ModelFileError(folder, "cannot write reports here: it is a file, not a folder")
+    if blocker is not None:
+        raise ModelFileError(folder, f"cannot create the folder: '{blocker}' is a file")
+    return folder
+
+
+def make_folder(folder: str | Path) -> Path:
+    """Create ``folder`` (and its parents) if needed.
+
+    Raises:
+        ModelFileError: it cannot be created.
+    """
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ModelFileError(folder, f"cannot create the folder: {exc.strerror or exc}") \
+            from None
+    return folder
+
+
+def check_ours(path: str | Path, marker: str | bytes) -> None:
+    """Refuse to replace an existing file that pinlin did not write.
+
+    A file that pinlin writes again and again (a report, an index, a plot) starts with
+    ``marker`` (text, or bytes such as PNG's signature); an existing file at that path that
+    does not is the user's, and is left alone.
+
+    Raises:
+        ModelFileError: ``path`` exists and does not start with ``marker`` (or is a folder).
+    """
+    path = Path(path)
+    if not os.path.lexists(path):
+        return
+    if path.is_dir():
+        raise ModelFileError(path, "cannot write the report: a folder has its name")
+    head = marker.encode("utf-8") if isinstance(marker, str) else marker
+    try:
+        with path.open("rb") as fh:
+            start = fh.read(len(head))
+    except OSError as exc:
+        raise ModelFileError(path, f"cannot read it: {exc.strerror or exc}") from None
+    if start != head:
+        shown = marker if isinstance(marker, str) else marker.decode("latin-1").strip("\x89")
+        raise ModelFileError(path, f"exists and was not written by pinlin (it does not start "
+                                   f"with '{shown}'); pinlin does not overwrite it: move it "
+                                   "or choose another folder")
+
+
+def _create_temp(target: Path) -> Path:
+    """An empty new file beside ``target`` (mode 0o666 less the umask, as ``open`` gives)."""
+    folder = _folder_of(target)
+    stem = target.name[:64]          # keep the temporary name within NAME_MAX
+    suffix = target.suffix[:16]      # some writers choose the format from the suffix
+    for _ in range(100):
+        tmp = folder / f".{stem}.{secrets.token_hex(4)}.tmp{suffix}"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        except FileExistsError:
+            continue
+        os.close(fd)
+        return tmp
+    raise FileExistsError(f"no free temporary name in '{folder}'")
 
 
 @contextlib.contextmanager
@@ -22,45 +163,55 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it onto ``path``.
 
     The temporary file keeps ``path``'s suffix (some writers choose the format from it) and is
-    removed if the block raises. Permissions follow the umask, as for a plain ``open``.
+    removed if the block raises. A new file gets the permissions ``open`` would give (0o666
+    less the umask); an existing file keeps its permissions (and owner, where allowed). A
+    symbolic link is followed: the file it points to is replaced, the link stays.
 
     Raises:
-        ModelFileError: the folder does not exist or cannot be written, or the write fails.
+        ArgumentError: ``path`` is not a path.
+        ModelFileError: ``path`` is a folder, its folder does not exist or is a file, or the
+            write fails (disk full, file size limit, ...).
     """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise ModelFileError(path, "cannot write: it is a folder")
+    path = check_file_target(path)
+    target = _follow_link(path)
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
-                                        dir=folder)
-    except FileNotFoundError:
-        raise ModelFileError(path, f"cannot write: folder '{folder}' does not exist") from None
+        before = target.stat() if target.exists() else None
+        tmp = _create_temp(target)
     except OSError as exc:
         raise ModelFileError(path, f"cannot write: {exc.strerror or exc}") from None
-    os.close(fd)
-    tmp = Path(tmp_name)
-    umask = os.umask(0)
-    os.umask(umask)
     try:
-        os.chmod(tmp, 0o666 & ~umask)
         yield tmp
-        os.replace(tmp, path)
+        if before is not None:
+            os.chmod(tmp, stat.S_IMODE(before.st_mode))
+            with contextlib.suppress(OSError):
+                os.chown(tmp, before.st_uid, before.st_gid)
+        os.replace(tmp, target)
     except OSError as exc:
         raise ModelFileError(path, f"cannot write: {exc.strerror or exc}") from None
     finally:
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             tmp.unlink()
 
 
-def write_atomic(path: str | Path, writer: Callable[[IO[bytes]], None]) -> None:
-    """Write ``path`` atomically through ``writer(binary_file)``."""
+def write_atomic(path: str | Path, writer: Callable[[IO[bytes]], object]) -> None:
+    """Write ``path`` atomically through ``writer(binary_file)`` (flushed and synced to disk
+    before the rename).
+
+    Raises:
+        ModelFileError: as :func:`atomic_path`; an exception ``writer`` raises that is not an
+            OSError passes through unchanged (and nothing is written).
+    """
     with atomic_path(path) as tmp, tmp.open("wb") as fh:
         writer(fh)
         fh.flush()
         os.fsync(fh.fileno())
 
 
+def write_bytes_atomic(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically."""
+    write_atomic(path, lambda fh: fh.write(data))
+
+
 def write_text_atomic(path: str | Path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
-    write_atomic(path, lambda fh: fh.write(text.encode("utf-8")))
+    write_bytes_atomic(path, text.encode("utf-8"))

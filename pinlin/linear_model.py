@@ -17,7 +17,11 @@ and output has a name. Models are saved and loaded as ``.npz``, MATLAB ``.mat`` 
 from __future__ import annotations
 
 import functools
+import io
 import json
+import math
+import zipfile
+import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,12 +29,15 @@ from typing import Any
 
 import numpy as np
 
-from .exceptions import ModelFileError, PinlinError, ShapeError
+from .exceptions import ArgumentError, ModelError, ModelFileError, PinlinError, ShapeError
+from .files import as_path, check_file_target, write_bytes_atomic
 from .operating_point import OperatingPoint
 
 _FIRST_ORDER = ("A", "B", "C", "D", "E", "F")
 _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 _CONSTRAINT = ("G",)
+_ALL_MATRICES = _FIRST_ORDER + _SECOND_ORDER + _CONSTRAINT
+_NAME_FIELDS = ("state_names", "input_names", "output_names")
 _FORMATS = (".npz", ".mat", ".json")
 
 
@@ -40,18 +47,96 @@ def _valid_names(names: tuple) -> bool:
     return all(type(s) is str for s in names) and len(set(names)) == len(names)
 
 
+def _distinct(names: tuple) -> bool:
+    """:func:`_valid_names` for any tuple (False for unhashable items)."""
+    try:
+        return _valid_names(names)
+    except TypeError:
+        return False
+
+
+def _names(key: str, value: Any, model: str) -> tuple[str, ...]:
+    """``value`` as a tuple of distinct strings.
+
+    Raises:
+        ArgumentError: not a sequence of names (a bare string, None, a number).
+        ModelError: a name appears more than once.
+    """
+    if isinstance(value, str | bytes) or not isinstance(value, Sequence | np.ndarray):
+        raise ArgumentError(key, f"expected a sequence of names, got {type(value).__name__}")
+    odd = next((s for s in value if not isinstance(s, str)), None)
+    if odd is not None:
+        raise ArgumentError(key, f"expected names as strings, got {type(odd).__name__}")
+    names = tuple(str(s) for s in value)
+    if not _valid_names(names):
+        raise ModelError(_duplicates_message(key, names, model))
+    return names
+
+
+def _duplicates_message(key: str, names: Sequence[str], model: str) -> str:
+    seen: dict[str, int] = {}
+    for s in names:
+        seen[s] = seen.get(s, 0) + 1
+    repeated = ", ".join(f"'{s}' ({k} times)" for s, k in seen.items() if k > 1)
+    return (f"model '{model}': {key} are not distinct: {repeated}; every state, input and "
+            "output needs its own name (a file saved with repeated names could not be read "
+            "back)")
+
+
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
     if (isinstance(value, np.ndarray) and value.dtype == np.float64 and value.shape == shape
             and not value.flags.writeable):
         return value  # already immutable: sharing it is safe
-    arr = np.array(value, dtype=float)  # a copy: the model owns its arrays
+    if value is None:
+        raise ArgumentError(name, "expected a matrix, got None")
+    if np.iscomplexobj(value):
+        raise ArgumentError(name, "expected a real matrix, got complex entries")
+    try:
+        arr = np.array(value, dtype=float)  # a copy: the model owns its arrays
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ArgumentError(name, f"expected a matrix of real numbers: {exc}") from None
     if arr.ndim == 1 and 0 in shape:
-        arr = arr.reshape(shape)
+        arr = arr.reshape(shape) if arr.size == 0 else arr
     if arr.shape != shape:
         raise ShapeError(f"{name} must be {shape[0]}x{shape[1]} to match the names given, "
                          f"got {'x'.join(map(str, arr.shape))}")
     arr.flags.writeable = False
     return arr
+
+
+_reduce = np.add.reduce
+
+
+def _check_finite(fields: Mapping[str, Any], model: str) -> None:
+    """Refuse NaN or inf in any matrix present.
+
+    One sum per matrix, added up (a NaN or inf makes the total non-finite; a total that
+    overflows from finite entries is told apart by the exact test that follows): about 1 us
+    per matrix, the cheapest exact test numpy offers.
+
+    Raises:
+        ModelError: naming the matrix, the model and the first non-finite entry.
+    """
+    total = 0.0
+    with np.errstate(over="ignore", invalid="ignore"):  # inf - inf, overflowing sums
+        for key in _ALL_MATRICES:
+            arr = fields.get(key)
+            if arr is not None:
+                total += _reduce(arr, None)
+    if math.isfinite(total):
+        return
+    for key in _ALL_MATRICES:
+        arr = fields.get(key)
+        if arr is None:
+            continue
+        bad = ~np.isfinite(arr)
+        if not bad.any():
+            continue  # finite entries whose sum overflows
+        where = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ModelError(f"model '{model}': matrix {key} has {int(bad.sum())} non-finite "
+                         f"entr{'y' if bad.sum() == 1 else 'ies'} (NaN or inf), the first at "
+                         f"{key}{list(where)} = {arr[where]}; a model with NaN or inf is "
+                         "never returned")
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,20 +176,19 @@ class LinearModel:
     info: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise ArgumentError("name", f"expected a str, got {type(self.name).__name__}")
         names = {}
-        for k in ("state_names", "input_names", "output_names"):
-            v = getattr(self, k)
-            if not (type(v) is tuple and _valid_names(v)):
-                v = tuple(str(s) for s in v)
-                object.__setattr__(self, k, v)
-                if not _valid_names(v):
-                    raise ShapeError(f"{k} has duplicates")
-            names[k] = v
-        n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
+        for k in _NAME_FIELDS:
+            value = getattr(self, k)
+            names[k] = (value if type(value) is tuple and _distinct(value)
+                        else _names(k, value, self.name))
+            object.__setattr__(self, k, names[k])
+        n, m, p = (len(names[k]) for k in _NAME_FIELDS)
         shapes = {"A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m), "E": (n, m), "F": (p, m)}
         for key, shape in shapes.items():
             value = getattr(self, key)
-            if value is not None:
+            if value is not None or key in "ABCD":
                 object.__setattr__(self, key, _matrix(key, value, shape))
         second = [getattr(self, k) is not None for k in _SECOND_ORDER]
         if any(second):
@@ -115,19 +199,41 @@ class LinearModel:
                                "Bu": (nv, m)}.items():
                 object.__setattr__(self, key, _matrix(key, getattr(self, key), shape))
         if self.G is not None:
-            G = np.asarray(self.G, dtype=float)
+            if np.iscomplexobj(self.G):
+                raise ArgumentError("G", "expected a real matrix, got complex entries")
+            try:
+                G = np.asarray(self.G, dtype=float)
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise ArgumentError("G", f"expected a matrix of real numbers: {exc}") from None
             if G.ndim != 2 or 2 * G.shape[1] != n:
                 raise ShapeError(f"G must have n/2 = {n // 2} columns, got shape {G.shape}")
             object.__setattr__(self, "G", _matrix("G", G, G.shape))
+        _check_finite(self.__dict__, self.name)
+        if self.operating_point is not None and not isinstance(self.operating_point,
+                                                                OperatingPoint):
+            raise ArgumentError("operating_point", "expected an OperatingPoint or None, got "
+                                                   f"{type(self.operating_point).__name__}")
+        if not isinstance(self.info, Mapping):
+            raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
         object.__setattr__(self, "info", dict(self.info))
 
     @classmethod
     def assembled(cls, **fields: Any) -> LinearModel:
         """A model from a formulation that built it consistent: read-only float64 arrays of
-        matching shapes, tuples of distinct names, a fresh ``info`` dict. Skips the checks of
-        the public constructor (they cost as much as a small linearization); every field of
-        the dataclass must be given.
+        matching shapes, tuples of distinct names, a fresh ``info`` dict. Skips the shape and
+        type checks of the public constructor (they cost as much as a small linearization);
+        every field of the dataclass must be given. Two checks stay, both cheap: the names
+        are distinct (what is saved must load) and every matrix is finite.
+
+        Raises:
+            ModelError: repeated names, or NaN or inf in a matrix (naming it and the model).
         """
+        model = fields["name"]
+        for k in _NAME_FIELDS:
+            names = fields[k]
+            if not (type(names) is tuple and _distinct(names)):
+                fields[k] = _names(k, names, model)  # raises naming what is wrong
+        _check_finite(fields, model)
         obj = object.__new__(cls)
         obj.__dict__.update(fields)
         return obj
@@ -194,78 +300,292 @@ class LinearModel:
     def save(self, path: str | Path) -> Path:
         """Write the model; the format follows the suffix: ``.npz``, ``.mat`` or ``.json``.
 
-        Raises:
-            ModelFileError: unknown suffix or the file cannot be written.
-        """
-        path = Path(path)
-        if path.suffix not in _FORMATS:
-            raise ModelFileError(path, f"unknown model format '{path.suffix}'; expected "
-                                       f"{', '.join(_FORMATS)}")
-        names = {"state_names": list(self.state_names), "input_names": list(self.input_names),
-                 "output_names": list(self.output_names)}
-        meta = _jsonable({"name": self.name, "info": self.info,
-                          "operating_point": (self.operating_point.as_dict()
-                                              if self.operating_point is not None else None)})
-        try:
-            if path.suffix == ".json":
-                doc = {**names, **meta, **{k: v.tolist() for k, v in self._arrays().items()}}
-                path.write_text(json.dumps(doc, indent=1))
-            elif path.suffix == ".npz":
-                with path.open("wb") as fh:
-                    np.savez(fh, **self._arrays(),
-                             **{k: np.array(v, dtype=str) for k, v in names.items()},
-                             meta=np.array(json.dumps(meta)))
-            else:
-                from scipy.io import savemat
+        The file is written atomically (a temporary file beside it, renamed into place): a
+        failure leaves an existing file as it was and no partial file behind. Whatever this
+        writes, :meth:`load` reads back.
 
-                savemat(path, {**self._arrays(),
-                               **{k: np.array(v, dtype=object) for k, v in names.items()},
-                               "meta": json.dumps(meta)}, oned_as="column")
-        except OSError as exc:
-            raise ModelFileError(path, f"cannot write: {exc.strerror or exc}") from None
+        Raises:
+            ArgumentError: ``path`` is not a path.
+            ModelFileError: unknown suffix, ``info`` that JSON cannot hold, or the file cannot
+                be written (folder missing, disk full, file size limit).
+        """
+        path = as_path(path)
+        fmt = _format(path)
+        check_file_target(path)
+        write_bytes_atomic(path, self._serialized(path, fmt))
         return path
+
+    def _serialized(self, path: Path, fmt: str) -> bytes:
+        """The file's content in format ``fmt`` (in memory: nothing touches the disk yet)."""
+        names = {k: list(getattr(self, k)) for k in _NAME_FIELDS}
+        try:
+            meta = _jsonable({"name": self.name, "info": self.info,
+                              "operating_point": (self.operating_point.as_dict()
+                                                  if self.operating_point is not None
+                                                  else None)})
+            meta_text = json.dumps(meta)
+            if fmt == ".json":
+                doc = {**names, **meta, **{k: v.tolist() for k, v in self._arrays().items()}}
+                return json.dumps(doc, indent=1).encode("utf-8")
+        except (TypeError, ValueError, RecursionError) as exc:
+            raise ModelFileError(path, "cannot save: the model's info or operating point is "
+                                       f"not JSON data: {exc}") from None
+        buf = io.BytesIO()
+        if fmt == ".npz":
+            np.savez(buf, **self._arrays(),
+                     **{k: np.array(v, dtype=str).reshape(len(v)) for k, v in names.items()},
+                     meta=np.array(meta_text))
+        else:
+            from scipy.io import savemat
+
+            cells = {}
+            for k, v in names.items():
+                cell = np.empty(len(v), dtype=object)
+                cell[:] = v
+                cells[k] = cell
+            savemat(buf, {**self._arrays(), **cells, "meta": meta_text}, oned_as="column")
+        return buf.getvalue()
 
     @classmethod
     def load(cls, path: str | Path) -> LinearModel:
-        """Read a model written by :meth:`save`.
+        """Read a model written by :meth:`save` (never unpickles anything).
 
         Raises:
-            ModelFileError: missing file, unknown suffix or unreadable content.
+            ArgumentError: ``path`` is not a path.
+            ModelFileError: missing file, a folder, unknown suffix, or content that is not a
+                model pinlin wrote (corrupt archive, wrong shapes or types, NaN or inf,
+                repeated names); the message names the file and what is wrong.
         """
-        path = Path(path)
-        if path.suffix not in _FORMATS:
-            raise ModelFileError(path, f"unknown model format '{path.suffix}'")
-        if not path.is_file():
+        path = as_path(path)
+        fmt = _format(path)
+        if path.is_dir():
+            raise ModelFileError(path, "is a folder, expected a model file")
+        if not path.exists():
             raise ModelFileError(path, "file not found")
+        if not path.is_file():
+            raise ModelFileError(path, "not a regular file")
         try:
-            if path.suffix == ".json":
-                doc = json.loads(path.read_text())
-                meta = doc
-            elif path.suffix == ".npz":
-                with np.load(path, allow_pickle=False) as z:
-                    doc = {k: z[k] for k in z.files}
-                meta = json.loads(str(doc.pop("meta")))
-            else:
-                from scipy.io import loadmat
+            raw = path.read_bytes()
+        except OSError as exc:
+            raise ModelFileError(path, f"cannot read: {exc.strerror or exc}") from None
+        try:
+            doc, meta = _READERS[fmt](path, raw)
+            return cls._from_document(path, doc, meta)
+        except ModelFileError:
+            raise
+        except PinlinError as exc:  # the constructor's checks: shapes, names, NaN
+            raise ModelFileError(path, f"inconsistent model: {exc}") from None
+        except MemoryError:
+            raise _bad(path, "too large to load into memory") from None
 
-                raw = loadmat(path, squeeze_me=False)
-                doc = {k: v for k, v in raw.items() if not k.startswith("__")}
-                for k in ("state_names", "input_names", "output_names"):
-                    doc[k] = [str(np.asarray(s).ravel()[0]) for s in np.asarray(doc[k]).ravel()]
-                meta = json.loads(str(np.asarray(doc.pop("meta")).ravel()[0]))
-            kwargs = {k: np.asarray(doc[k], float)
-                      for k in _FIRST_ORDER + _SECOND_ORDER + _CONSTRAINT if k in doc}
-            if "G" in kwargs and kwargs["G"].ndim == 1:  # zero rows read back flat
-                kwargs["G"] = kwargs["G"].reshape(-1, len(doc["state_names"]) // 2)
-            op = meta.get("operating_point")
-            return cls(**kwargs,
-                       state_names=[str(s) for s in doc["state_names"]],
-                       input_names=[str(s) for s in doc["input_names"]],
-                       output_names=[str(s) for s in doc["output_names"]],
-                       operating_point=_op_from_dict(op) if op else None,
-                       name=meta.get("name", ""), info=meta.get("info", {}))
-        except (KeyError, ValueError, TypeError, OSError) as exc:
-            raise ModelFileError(path, f"not a pinlin model file: {exc}") from None
+    @classmethod
+    def _from_document(cls, path: Path, doc: Mapping[str, Any],
+                       meta: Mapping[str, Any]) -> LinearModel:
+        """The model from parsed file content (matrices as arrays or nested lists)."""
+        missing = [k for k in ("A", "B", "C", "D", *_NAME_FIELDS) if k not in doc]
+        if missing:
+            raise _bad(path, f"missing {', '.join(repr(k) for k in missing)} (expected A, B, C, "
+                           "D and the state, input and output names)")
+        names = {k: _read_names(path, k, doc[k]) for k in _NAME_FIELDS}
+        kwargs = {k: _read_matrix(path, k, doc[k]) for k in _ALL_MATRICES if k in doc}
+        if "G" in kwargs and kwargs["G"].ndim == 1 and kwargs["G"].size == 0:
+            kwargs["G"] = kwargs["G"].reshape(0, len(names["state_names"]) // 2)
+        name = meta.get("name", "")
+        if not isinstance(name, str):
+            raise _bad(path, f"field 'name' must be a string, got {type(name).__name__}")
+        info = meta.get("info", {})
+        if info is None:
+            info = {}
+        if not isinstance(info, Mapping):
+            raise _bad(path, f"field 'info' must be a table, got {type(info).__name__}")
+        op = meta.get("operating_point")
+        if op is not None and not isinstance(op, Mapping):
+            raise _bad(path, f"field 'operating_point' must be a table, got {type(op).__name__}")
+        try:
+            point = _op_from_dict(op) if op else None
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
+            raise _bad(path, f"field 'operating_point' is malformed: {_describe(exc)}") from None
+        return cls(**kwargs, **names, operating_point=point, name=name, info=info)
+
+
+def _bad(path: Path, reason: str) -> ModelFileError:
+    """The error for file content that is not a model pinlin wrote."""
+    return ModelFileError(path, f"not a pinlin model file: {reason}")
+
+
+def _format(path: Path) -> str:
+    if path.suffix not in _FORMATS:
+        found = f"'{path.suffix}'" if path.suffix else "no suffix"
+        raise ModelFileError(path, f"unknown model format ({found}); expected "
+                                   f"{', '.join(_FORMATS[:-1])} or {_FORMATS[-1]}")
+    return path.suffix
+
+
+def _describe(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if isinstance(exc, KeyError):
+        text = f"missing {text}"
+    return text[:200] or type(exc).__name__
+
+
+def _parse_int(text: str) -> int | float:
+    """JSON integers; one too long for a float becomes inf (refused later as non-finite)
+    rather than an OverflowError or Python's digit-limit ValueError."""
+    return int(text) if len(text) <= 300 else float(text)
+
+
+def _read_json(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _bad(path, f"not UTF-8 text: {exc}") from None
+    try:
+        doc = json.loads(text, parse_int=_parse_int)
+    except json.JSONDecodeError as exc:
+        raise _bad(path, f"not valid JSON: {exc}") from None
+    except RecursionError:
+        raise _bad(path, "not valid JSON: nested too deeply") from None
+    if not isinstance(doc, dict):
+        raise _bad(path, f"expected a JSON object with A, B, C, D and the names, got "
+                       f"{_json_kind(doc)}")
+    return doc, doc
+
+
+def _json_kind(value: Any) -> str:
+    kinds = {list: "a list", str: "a string", bool: "a boolean", type(None): "null",
+             int: "a number", float: "a number"}
+    return kinds.get(type(value), type(value).__name__)
+
+
+def _read_npz(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
+    if not zipfile.is_zipfile(io.BytesIO(raw)):
+        raise _bad(path, "not an .npz archive (not a zip file: truncated or another format)")
+    try:
+        _check_npy_headers(path, raw)
+        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+            doc = {}
+            for k in z.files:
+                try:
+                    doc[k] = z[k]
+                except ValueError as exc:
+                    raise _bad(path, f"member '{k}': {_describe(exc)}") from None
+    except ModelFileError:
+        raise
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, RuntimeError,
+            NotImplementedError, KeyError, zlib.error) as exc:
+        raise _bad(path, f"corrupt .npz archive: {_describe(exc)}") from None
+    if "meta" not in doc:
+        raise _bad(path, "missing 'meta' (expected A, B, C, D, the names and meta)")
+    meta = doc.pop("meta")
+    if meta.dtype.kind != "U" or meta.size != 1:
+        raise _bad(path, f"member 'meta' must be one string, got {meta.dtype} of shape "
+                       f"{meta.shape}")
+    return doc, _meta_from_text(path, str(meta.reshape(())))
+
+
+_NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0,
+                (2, 0): np.lib.format.read_array_header_2_0}
+
+
+def _check_npy_headers(path: Path, raw: bytes) -> None:
+    """Read every array's .npy header before numpy allocates anything: refuse object arrays
+    (pickles) and arrays whose header declares more bytes than the member holds (a small
+    hostile file could otherwise make numpy allocate terabytes)."""
+    with zipfile.ZipFile(io.BytesIO(raw)) as zf:
+        for member in zf.infolist():
+            if not member.filename.endswith(".npy"):
+                continue
+            key = member.filename.removesuffix(".npy")
+            with zf.open(member) as fh:
+                version = np.lib.format.read_magic(fh)
+                if version not in _NPY_HEADERS:
+                    raise _bad(path, f"member '{key}': .npy format version {version} is not "
+                                     "one pinlin writes")
+                shape, _, dtype = _NPY_HEADERS[version](fh)
+            if dtype.hasobject:
+                raise _bad(path, f"member '{key}': holds Python objects (a pickle), which "
+                                 "pinlin never loads")
+            needed = math.prod(shape) * dtype.itemsize
+            if needed > member.file_size:
+                raise _bad(path, f"member '{key}': its header declares shape {shape} "
+                                 f"({needed} bytes) but it holds {member.file_size} bytes")
+
+
+def _meta_from_text(path: Path, text: str) -> Mapping[str, Any]:
+    try:
+        meta = json.loads(text, parse_int=_parse_int)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise _bad(path, f"'meta' is not valid JSON: {_describe(exc)}") from None
+    if not isinstance(meta, dict):
+        raise _bad(path, f"'meta' must be a JSON object, got {_json_kind(meta)}")
+    return meta
+
+
+def _read_mat(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
+    from scipy.io import loadmat
+
+    try:
+        mat = loadmat(io.BytesIO(raw), squeeze_me=False)
+    except Exception as exc:  # noqa: BLE001  scipy raises many kinds for a corrupt file
+        raise _bad(path, f"not a MATLAB .mat file pinlin can read: {_describe(exc)}") from None
+    doc: dict[str, Any] = {k: v for k, v in mat.items() if not k.startswith("__")}
+    for k in _NAME_FIELDS:
+        if k in doc:
+            doc[k] = _mat_cell(path, k, doc[k])
+    if "meta" not in doc:
+        raise _bad(path, "missing 'meta' (expected A, B, C, D, the names and meta)")
+    meta = np.asarray(doc.pop("meta"))
+    if meta.dtype.kind != "U" or meta.size != 1:
+        raise _bad(path, "variable 'meta' must be one string")
+    return doc, _meta_from_text(path, str(meta.ravel()[0]))
+
+
+def _mat_cell(path: Path, key: str, cell: Any) -> list[str]:
+    """Names from a MATLAB cell array of strings."""
+    cell = np.asarray(cell)
+    if cell.dtype != object:
+        raise _bad(path, f"variable '{key}' must be a cell array of strings, got {cell.dtype}")
+    out = []
+    for item in cell.ravel():
+        item = np.asarray(item)
+        if item.dtype.kind != "U" or item.size > 1:
+            raise _bad(path, f"variable '{key}' must hold strings, got {item.dtype}")
+        out.append(str(item.ravel()[0]) if item.size else "")
+    return out
+
+
+_READERS = {".json": _read_json, ".npz": _read_npz, ".mat": _read_mat}
+
+
+def _read_names(path: Path, key: str, value: Any) -> list[str]:
+    if isinstance(value, np.ndarray):
+        if value.size == 0:
+            return []
+        if value.dtype.kind != "U" or value.ndim != 1:
+            raise _bad(path, f"'{key}' must be a list of strings, got {value.dtype} of shape "
+                           f"{value.shape}")
+        return [str(s) for s in value]
+    if not isinstance(value, list) or not all(isinstance(s, str) for s in value):
+        raise _bad(path, f"'{key}' must be a list of strings")
+    return value
+
+
+def _read_matrix(path: Path, key: str, value: Any) -> np.ndarray:
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "fiub":
+            raise _bad(path, f"'{key}' must be a real matrix, got dtype {value.dtype}")
+        arr = value.astype(float)
+    else:
+        if not isinstance(value, list):
+            raise _bad(path, f"'{key}' must be a matrix (a list of rows), got "
+                           f"{_json_kind(value)}")
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise _bad(path, f"'{key}' is not a matrix of numbers: {_describe(exc)}") from None
+    if arr.ndim != 2 and arr.size:
+        raise _bad(path, f"'{key}' must be a 2-D matrix, got shape {arr.shape}")
+    return arr
 
 
 def _jsonable(obj: Any) -> Any:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from .exceptions import PinlinError
+from .exceptions import ArgumentError, PinlinError
 
 _STRIP = ("visual", "collision", "mimic", "dynamics", "transmission", "gazebo")
 
@@ -104,14 +104,45 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
     (solref time constant 2 dt, solimp ``impedance``). Steady rotation cannot be expressed.
     MuJoCo's warnings while importing and compiling are kept in ``warnings``.
 
+    Args:
+        dt: Time step [s], finite and > 0.
+        impedance: Solver impedance of the equalities, strictly between 0 and 1.
+
     Raises:
+        ArgumentError: ``dt`` or ``impedance`` out of range.
         MujocoError: MuJoCo refuses the model (its reason is quoted), or the scene has effects
             this exporter cannot express.
     """
+    dt = check_time_step(dt, "dt")
+    impedance = _number(impedance, "impedance")
+    if not 0.0 < impedance < 1.0:
+        raise ArgumentError("impedance", f"must be strictly between 0 and 1, got {impedance!r}")
     with _captured_warnings() as caught:
         ms = _build(system, dt, impedance)
     ms.warnings = tuple(caught)
     return ms
+
+
+def _number(value: object, argument: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ArgumentError(argument, f"expected a number, got {type(value).__name__}")
+    try:
+        return float(value)
+    except OverflowError:
+        return float("inf")  # refused by the range checks
+
+
+def check_time_step(dt: object, argument: str = "dt") -> float:
+    """``dt`` [s] as a float, refused unless finite and > 0.
+
+    Raises:
+        ArgumentError: naming ``argument`` (``dt`` from Python, ``--dt`` from the CLI).
+    """
+    value = _number(dt, argument)
+    if not (np.isfinite(value) and value > 0.0):
+        raise ArgumentError(argument, f"the time step must be a finite number of seconds > 0, "
+                                      f"got {dt!r}")
+    return value
 
 
 def _build(system, dt: float, impedance: float) -> MujocoScene:

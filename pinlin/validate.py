@@ -37,11 +37,21 @@ from __future__ import annotations
 
 import math
 import platform
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+
+from .files import (
+    check_folder_target,
+    check_ours,
+    make_folder,
+    write_atomic,
+    write_text_atomic,
+)
 
 MATRIX_TOL = 1e-8
 EIG_TOL = 1e-6
@@ -51,6 +61,12 @@ EPS_OPEN = 3e-4
 #: Loops: stiff soft constraints (time constant 2 dt) make larger steps inaccurate.
 EPS_LOOP = 1e-6
 LOOP_DT = 1e-4
+#: First line of every file pinlin writes into a report folder: an existing file there that
+#: does not start so is the user's and is never replaced.
+REPORT_MARKER = "# Validation of '"
+INDEX_MARKER = "# Validation reports"
+PNG_MARKER = b"\x89PNG"
+_INDEX_ROW = re.compile(r"^\| \[(?P<name>[^\]]+)\]\((?P=name)\.md\) \| (?P<status>[^|]*?) \|")
 
 
 @dataclass
@@ -269,14 +285,19 @@ def validate(scene, name: str | None = None) -> Validation:
 
 # ------------------------------------------------------------------------------------------------
 def write_report(res: Validation, folder: Path) -> None:
-    """``<name>.md`` and ``<name>.png`` (both eigenvalue sets in the complex plane)."""
+    """``<name>.md`` and ``<name>.png`` (both eigenvalue sets in the complex plane), each
+    written atomically.
+
+    Raises:
+        ModelFileError: a file cannot be written (it is left as it was).
+    """
     import mujoco
     import pinocchio as pin
 
     lines = [f"# Validation of '{res.name}' against MuJoCo", "",
              f"Verdict: **{res.status}**" + (f" — {res.reason}" if res.reason else ""), ""]
     if res.pinlin_eigs is None:
-        (folder / f"{res.name}.md").write_text("\n".join(lines) + "\n")
+        write_text_atomic(folder / f"{res.name}.md", "\n".join(lines) + "\n")
         return
     lines += [
         f"pin {pin.__version__}, MuJoCo {mujoco.__version__}, {platform.machine()}. "
@@ -316,8 +337,8 @@ def write_report(res: Validation, folder: Path) -> None:
         lines.append(f"| {k} | {a.real:+.9g} {a.imag:+.9g}j | {b.real:+.9g} {b.imag:+.9g}j | "
                      f"{e:.1e} | {tol:.1e} | {c.real:+.7g} {c.imag:+.7g}j | {kind} |")
     lines += ["", f"![eigenvalues]({res.name}.png)", ""]
-    (folder / f"{res.name}.md").write_text("\n".join(lines) + "\n")
     _plot(res, folder / f"{res.name}.png")
+    write_text_atomic(folder / f"{res.name}.md", "\n".join(lines) + "\n")
 
 
 def _plot(res: Validation, path: Path) -> None:
@@ -337,27 +358,61 @@ def _plot(res: Validation, path: Path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=70)
-    plt.close(fig)
+    try:
+        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=70))
+    finally:
+        plt.close(fig)
 
 
-def write_summary(results: list[Validation], folder: Path, command: str) -> None:
-    lines = ["# Validation reports", "",
-             f"Produced by `{command}`. One line per system: pinlin's linear model against "
-             "MuJoCo (see [pinlin/validate.py](../../pinlin/validate.py) for the method and "
-             "tolerances). Other reports here: [accuracy_vs_time.md](accuracy_vs_time.md), "
+def _row(r: Validation) -> str:
+    mat = f"{r.matrix_error:.1e}" if r.matrix_error is not None else "-"
+    eig = f"{r.eig_error:.1e}" if np.isfinite(r.eig_error) else "-"
+    rig = f"{r.rigid_error:.1e}" if np.isfinite(r.rigid_error) else "-"
+    note = r.reason[:160].replace("|", "\\|")
+    return f"| [{r.name}]({r.name}.md) | {r.status} | {mat} | {eig} | {rig} | {note} |"
+
+
+def _index_rows(path: Path) -> dict[str, str]:
+    """Rows of an existing index, by system name, in file order (empty if there is none)."""
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return {}
+    rows = {}
+    for line in text.splitlines():
+        m = _INDEX_ROW.match(line)
+        if m:
+            rows[m["name"]] = line
+    return rows
+
+
+def write_summary(results: list[Validation], folder: Path, command: str,
+                  merge: bool = True) -> None:
+    """The index ``README.md``: one row per system, written atomically.
+
+    With ``merge``, the rows of an existing index for systems not in ``results`` are kept
+    (in place; new systems are appended), so that validating one system does not drop the
+    others from the index.
+    """
+    path = folder / "README.md"
+    rows = _index_rows(path) if merge else {}
+    done = {r.name for r in results}
+    kept = [name for name in rows if name not in done]
+    for r in results:
+        rows[r.name] = _row(r)
+    statuses = [m["status"] for m in (_INDEX_ROW.match(line) for line in rows.values()) if m]
+    note = (f" Rows of {len(kept)} other systems are kept from earlier runs."
+            if kept else "")
+    lines = [INDEX_MARKER, "",
+             f"Produced by `{command}`.{note} One line per system: pinlin's linear model "
+             "against MuJoCo (see [pinlin/validate.py](../../pinlin/validate.py) for the method "
+             "and tolerances). Other reports here: [accuracy_vs_time.md](accuracy_vs_time.md), "
              "[bench_linearize.md](bench_linearize.md).", "",
              "| system | verdict | matrix error | eigenvalue error | rigid | note |",
-             "|---|---|---|---|---|---|"]
-    for r in results:
-        mat = f"{r.matrix_error:.1e}" if r.matrix_error is not None else "-"
-        eig = f"{r.eig_error:.1e}" if np.isfinite(r.eig_error) else "-"
-        rig = f"{r.rigid_error:.1e}" if np.isfinite(r.rigid_error) else "-"
-        link = f"[{r.name}]({r.name}.md)"
-        lines.append(f"| {link} | {r.status} | {mat} | {eig} | {rig} | {r.reason[:160]} |")
-    counts = {s: sum(r.status == s for r in results) for s in sorted({r.status for r in results})}
+             "|---|---|---|---|---|---|", *rows.values()]
+    counts = {s: statuses.count(s) for s in sorted(set(statuses))}
     lines += ["", "Totals: " + ", ".join(f"{k}: {v}" for k, v in counts.items()), ""]
-    (folder / "README.md").write_text("\n".join(lines))
+    write_text_atomic(path, "\n".join(lines))
 
 
 def targets(all_systems: bool, names: list[str]) -> list[str]:
@@ -370,25 +425,81 @@ def targets(all_systems: bool, names: list[str]) -> list[str]:
     return sorted(bundled_scenes()) + robots
 
 
-def run(names: list[str], out_dir: str | Path = "validation/reports", progress: bool = True,
-        command: str = "pinlin validate", summary: bool = True) -> list[Validation]:
-    """Validate ``names`` (scene files, bundled scenes, robots), write reports; returns them."""
-    from .bench import Progress, check_scene
-    from .exceptions import PinlinError
+def report_name(target: str) -> str:
+    """The file name (without suffix) of a target's report: a scene or URDF file's stem, or
+    the bundled scene or robot name."""
+    path = Path(target)
+    return path.stem if path.suffix in (".toml", ".urdf") else path.name
 
-    folder = Path(out_dir)
-    folder.mkdir(parents=True, exist_ok=True)
-    bar = Progress(len(names), progress)
-    results = []
+
+def run(names: Sequence[str], out_dir: str | Path = "validation/reports", progress: bool = True,
+        command: str = "pinlin validate", summary: bool = True, *, strict: bool = True,
+        merge: bool = True) -> list[Validation]:
+    """Validate ``names`` (scene files, bundled scenes, robots), write reports; returns them.
+
+    Everything that can be refused is refused before any work and before anything is
+    written: an output folder that is a file, two targets with the same report name, an
+    existing report or index that pinlin did not write and, with ``strict``, a target that
+    names nothing (or a scene that does not build). Without ``strict`` (``--all``) such a
+    target gets a "pinlin refuses" row instead. Reports are written atomically as each
+    system is done; the index merges into an existing one (``merge``).
+
+    Raises:
+        ArgumentError: ``names`` is not a list of names, or two give the same report name.
+        UnknownRobotError, SceneError, UrdfError, ...: with ``strict``, a target that does
+            not resolve to a scene.
+        ModelFileError: the output folder cannot be used, or a file cannot be written.
+    """
+    from .bench import Progress, check_scene
+    from .exceptions import ArgumentError, PinlinError
+
+    if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+        raise ArgumentError("names", "expected a list of scene files, bundled scenes or "
+                                     "robot names")
+    names = list(dict.fromkeys(names))  # a system named twice is validated once
+    folder = check_folder_target(out_dir, "out_dir")
+    by_report: dict[str, str] = {}
+    for target in names:
+        key = report_name(target)
+        if key in by_report:
+            raise ArgumentError("names", f"'{by_report[key]}' and '{target}' would both write "
+                                         f"the report {key}.md")
+        if key in ("", ".", "..", "README"):
+            raise ArgumentError("names", f"'{target}' gives no usable report name")
+        by_report[key] = target
+    for key in by_report:  # never replace a file pinlin did not write
+        check_ours(folder / f"{key}.md", REPORT_MARKER)
+        check_ours(folder / f"{key}.png", PNG_MARKER)
+    if summary:
+        check_ours(folder / "README.md", INDEX_MARKER)
+    scenes: dict[str, object] = {}
     for target in names:
         try:
-            scene, _ = check_scene(target)
-            res = validate(scene, name=Path(target).stem if target.endswith(".toml") else target)
+            scene = check_scene(target)[0]
+            scene.system  # noqa: B018  built now: a scene that does not build is refused here
+            scenes[target] = scene
         except PinlinError as exc:
-            res = Validation(Path(target).stem, "pinlin refuses", " ".join(str(exc).split()))
-        results.append(res)
-        write_report(res, folder)
-        bar.step(f"{res.name}: {res.status}")
+            if strict:
+                raise
+            scenes[target] = exc
+    make_folder(folder)
+    bar = Progress(len(names), progress)
+    results = []
+    try:
+        for target in names:
+            name, scene = report_name(target), scenes[target]
+            if isinstance(scene, PinlinError):
+                res = Validation(name, "pinlin refuses", " ".join(str(scene).split()))
+            else:
+                try:
+                    res = validate(scene, name=name)
+                except PinlinError as exc:
+                    res = Validation(name, "pinlin refuses", " ".join(str(exc).split()))
+            results.append(res)
+            write_report(res, folder)
+            bar.step(f"{res.name}: {res.status}")
+    finally:
+        bar.close()
     if summary:
-        write_summary(results, folder, command)
+        write_summary(results, folder, command, merge=merge)
     return results

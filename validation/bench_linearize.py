@@ -29,6 +29,7 @@ import pinocchio as pin
 import scipy.linalg as sla
 
 import pinlin
+from pinlin.files import write_text_atomic
 
 REPORT = Path(__file__).resolve().parent / "reports" / "bench_linearize.md"
 
@@ -180,7 +181,7 @@ def main() -> None:
         "",
     ]
     REPORT.parent.mkdir(parents=True, exist_ok=True)
-    REPORT.write_text("\n".join(lines))
+    write_text_atomic(REPORT, "\n".join(lines))
     print("\n".join(lines))
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import pinlin
+from pinlin.files import write_text_atomic
 from pinlin.formulations.constrained import first_order
 from pinlin.scene import bundled_scenes
 
@@ -73,7 +74,7 @@ def main() -> None:
     for name, alpha, ep, e, rp, r in rows:
         lines.append(f"| {name} | {alpha:.0e} | {ep:.1e} | {e:.1e} | {rp:+.1e} | {r:+.1e} |")
     REPORT.parent.mkdir(parents=True, exist_ok=True)
-    REPORT.write_text("\n".join(lines) + "\n")
+    write_text_atomic(REPORT, "\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

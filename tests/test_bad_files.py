@@ -1,0 +1,648 @@
+"""Bad model files, bad output paths and failed writes.
+
+Every case asserts the exception class and the key words of its message; from the CLI, exit
+status 2, exactly one stderr line starting "pinlin: error: " and no file written or changed.
+Writes that fail for real (a file-size limit, a folder that is a file) leave an existing file
+byte-identical and no temporary file behind. Everything runs on real files in tmp_path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import warnings
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import REPO, URDF_DIR
+
+import pinlin
+from pinlin import ArgumentError, LinearModel, ModelError, ModelFileError
+from pinlin.cli import main
+from pinlin.files import atomic_path, write_atomic, write_text_atomic
+
+FORMATS = (".npz", ".mat", ".json")
+GRAPHS = REPO / "validation" / "graphs"
+
+
+# ---------------------------------------------------------------------------------- helpers
+def cli(capfd, *argv: str) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
+def assert_refused(code: int, err: str, *words: str) -> None:
+    """Exit 2, exactly one stderr line starting 'pinlin: error: ', the key words in it."""
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("pinlin: error: "), err
+    assert "Traceback" not in err
+    for w in words:
+        assert w in err, (w, err)
+
+
+def snapshot(folder: Path) -> dict[str, bytes | None]:
+    """Every path under folder with its bytes (None for folders)."""
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None)
+            for p in sorted(folder.rglob("*"))}
+
+
+def no_temporaries(folder: Path) -> None:
+    stray = [p.name for p in folder.rglob("*") if ".tmp" in p.name]
+    assert not stray, stray
+
+
+def tiny() -> LinearModel:
+    """x' = -x + u, y = x."""
+    return LinearModel(A=[[-1.0]], B=[[1.0]], C=[[1.0]], D=[[0.0]], state_names=["x"],
+                       input_names=["u"], output_names=["y"], name="tiny")
+
+
+def fields_of(model: LinearModel) -> dict:
+    return {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+
+
+def run_limited(argv: list[str], limit: int, cwd: Path) -> subprocess.CompletedProcess:
+    """``pinlin argv`` in a child process whose files may not grow beyond ``limit`` bytes;
+    SIGXFSZ is ignored so that write() fails with EFBIG instead of killing the child."""
+
+    def limit_files() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    code = "import sys; from pinlin.cli import main; sys.exit(main(sys.argv[1:]))"
+    return subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
+                          preexec_fn=limit_files, cwd=cwd, timeout=600, check=False)
+
+
+def run_python_limited(source: str, limit: int, cwd: Path) -> subprocess.CompletedProcess:
+    def limit_files() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return subprocess.run([sys.executable, "-c", source], capture_output=True, text=True,
+                          preexec_fn=limit_files, cwd=cwd, timeout=600, check=False)
+
+
+@pytest.fixture(scope="module")
+def pendulum() -> LinearModel:
+    return pinlin.linearize(URDF_DIR / "pendulum.toml")
+
+
+@pytest.fixture(scope="module")
+def models() -> dict[str, LinearModel]:
+    from pinlin.graph import Graph
+
+    return {
+        "open_chain": pinlin.linearize(URDF_DIR / "ur5_arm.toml"),
+        "reduced": pinlin.linearize(URDF_DIR / "four_bar.toml"),
+        "penalty": pinlin.linearize(URDF_DIR / "four_bar.toml", formulation="penalty"),
+        "canonical": pinlin.linearize(URDF_DIR / "four_bar.toml", formulation="canonical"),
+        "graph_with_E_F": Graph.load(GRAPHS / "lead_lag.toml").linearize(),
+        "no_inputs_or_outputs": LinearModel(
+            A=-np.eye(2), B=np.zeros((2, 0)), C=np.zeros((0, 2)), D=np.zeros((0, 0)),
+            state_names=["q:ω", ""], input_names=[], output_names=[], name="bare",
+            info={"nested": {"t": (1, 2)}, "estimate": 1e-300}),
+    }
+
+
+# ------------------------------------------------------------------ 1. the model itself
+@pytest.mark.parametrize("key", ["A", "B", "C", "D"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_first_order_matrix_is_refused(key, bad):
+    kw = {"A": [[-1.0]], "B": [[1.0]], "C": [[1.0]], "D": [[0.0]]}
+    kw[key] = [[bad]]
+    with pytest.raises(ModelError, match=rf"model 'tiny': matrix {key} has 1 non-finite"):
+        LinearModel(**kw, state_names=["x"], input_names=["u"], output_names=["y"],
+                    name="tiny")
+
+
+@pytest.mark.parametrize("key", ["E", "F", "M", "C_damp", "K", "Bu", "G"])
+def test_non_finite_optional_matrix_is_refused(models, key):
+    source = models["graph_with_E_F"] if key in "EF" else models["penalty"]
+    fields = fields_of(source)
+    bad = np.array(fields[key], dtype=float)
+    bad.flat[-1] = np.nan
+    fields[key] = bad
+    with pytest.raises(ModelError, match=rf"model '{source.name}': matrix {key} has 1 non"):
+        LinearModel(**fields)
+
+
+def test_trusted_constructor_refuses_nan_and_repeated_names(models):
+    """LinearModel.assembled skips the shape checks, not these two."""
+    fields = fields_of(models["open_chain"])
+    K = np.array(fields["K"])
+    K[2, 3] = np.inf
+    K.flags.writeable = False
+    with pytest.raises(ModelError, match=r"matrix K has 1 non-finite.*K\[2, 3\] = inf"):
+        LinearModel.assembled(**{**fields, "K": K})
+    outputs = fields["output_names"]
+    with pytest.raises(ModelError, match=rf"output_names are not distinct: '{outputs[0]}'"):
+        LinearModel.assembled(**{**fields, "output_names": (outputs[0], *outputs[1:-1],
+                                                            outputs[0])})
+    assert LinearModel.assembled(**fields).A is fields["A"]  # the good model still passes
+
+
+def test_finite_entries_whose_sum_overflows_are_accepted_without_warning():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = LinearModel(A=np.full((2, 2), 1e308), B=np.zeros((2, 0)), C=np.zeros((0, 2)),
+                        D=np.zeros((0, 0)), state_names=["a", "b"], input_names=[],
+                        output_names=[])
+    assert m.A[0, 0] == 1e308
+
+
+def test_repeated_names_are_refused_by_the_constructor():
+    with pytest.raises(ModelError, match=r"output_names are not distinct: 'y' \(2 times\)"):
+        LinearModel(A=[[0.0]], B=[[1.0]], C=[[1.0], [2.0]], D=[[0.0], [0.0]],
+                    state_names=["x"], input_names=["u"], output_names=["y", "y"])
+
+
+def test_repeated_scene_outputs_never_reach_a_file(write_scene, capfd, tmp_path):
+    """Outputs 'hinge' and 'q:hinge' both ask for q:hinge: refused (by the scene or the
+    model), and --out is never written."""
+    path = write_scene('urdf = "robot.urdf"\n[effects]\ngravity = [0.0, 0.0, -9.81]\n'
+                       '[outputs]\njoints = ["hinge", "q:hinge"]\n',
+                       robot__urdf=(URDF_DIR / "pendulum.urdf").read_text())
+    with pytest.raises((pinlin.SceneError, ModelError), match="q:hinge"):
+        pinlin.linearize(path)
+    out = tmp_path / "m.npz"
+    code, _, err = cli(capfd, "linearize", path, "--out", out)
+    assert_refused(code, err, "q:hinge")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("kwargs, cls, words", [
+    ({"state_names": "x"}, ArgumentError, "argument 'state_names': expected a sequence"),
+    ({"input_names": None}, ArgumentError, "argument 'input_names': expected a sequence"),
+    ({"output_names": [7]}, ArgumentError, "expected names as strings, got int"),
+    ({"output_names": (["y"],)}, ArgumentError, "expected names as strings, got list"),
+    ({"A": [[1j]]}, ArgumentError, "argument 'A': expected a real matrix"),
+    ({"B": [["one"]]}, ArgumentError, "argument 'B': expected a matrix of real numbers"),
+    ({"C": None}, ArgumentError, "argument 'C': expected a matrix, got None"),
+    ({"info": [1, 2]}, ArgumentError, "argument 'info': expected a mapping"),
+    ({"name": 7}, ArgumentError, "argument 'name': expected a str"),
+])
+def test_wrong_types_in_the_constructor(kwargs, cls, words):
+    base = {"A": [[-1.0]], "B": [[1.0]], "C": [[1.0]], "D": [[0.0]], "state_names": ["x"],
+            "input_names": ["u"], "output_names": ["y"]}
+    with pytest.raises(cls) as info:
+        LinearModel(**{**base, **kwargs})
+    assert words in str(info.value)
+
+
+# -------------------------------------------------------------------- round trips
+@pytest.mark.parametrize("suffix", FORMATS)
+@pytest.mark.parametrize("kind", ["open_chain", "reduced", "penalty", "canonical",
+                                  "graph_with_E_F", "no_inputs_or_outputs"])
+def test_what_saves_loads_back(models, kind, suffix, tmp_path):
+    model = models[kind]
+    back = LinearModel.load(model.save(tmp_path / f"m{suffix}"))
+    for key in ("A", "B", "C", "D", "E", "F", "M", "C_damp", "K", "Bu", "G"):
+        ours, theirs = getattr(model, key), getattr(back, key)
+        assert (ours is None) == (theirs is None), key
+        if ours is not None:
+            assert theirs.shape == ours.shape and np.array_equal(theirs, ours), key
+    for key in ("state_names", "input_names", "output_names", "name"):
+        assert getattr(back, key) == getattr(model, key), key
+    assert json.dumps(back.info, sort_keys=True) == json.dumps(
+        json.loads(json.dumps(pinlin.linear_model._jsonable(model.info))), sort_keys=True)
+    if model.operating_point is not None:
+        np.testing.assert_array_equal(back.operating_point.q, model.operating_point.q)
+    if kind in ("penalty", "canonical"):
+        assert back.G.shape[0] > 0 and back.info["formulation"] == kind
+    no_temporaries(tmp_path)
+
+
+# ------------------------------------------------------------ 2. LinearModel.load
+def _npz(path: Path, **members) -> Path:
+    with path.open("wb") as fh:
+        np.savez(fh, **members)
+    return path
+
+
+def _npy_header(shape: tuple[int, ...]) -> bytes:
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False,
+                                               "shape": shape})
+    return buf.getvalue()
+
+
+def _npz_member(path: Path, name: str, data: bytes) -> None:
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr(name, data)
+
+
+def _valid_members(model: LinearModel) -> dict:
+    buf = io.BytesIO(model._serialized(Path("x.npz"), ".npz"))
+    with np.load(buf) as z:
+        return {k: z[k] for k in z.files}
+
+
+BAD_FILES = {
+    "json_list": ("m.json", lambda p, m: p.write_text("[1, 2, 3]"),
+                  "expected a JSON object with A, B, C, D and the names, got a list"),
+    "json_scalar": ("m.json", lambda p, m: p.write_text("3.5"), "got a number"),
+    "json_null": ("m.json", lambda p, m: p.write_text("null"), "got null"),
+    "json_syntax": ("m.json", lambda p, m: p.write_text('{"A": [[1.0]'), "not valid JSON"),
+    "json_deep": ("m.json", lambda p, m: p.write_text("[" * 200_000 + "]" * 200_000),
+                  "nested too deeply"),
+    "json_not_utf8": ("m.json", lambda p, m: p.write_bytes(b"\xff\xfe{}"), "not UTF-8 text"),
+    "json_huge_integer": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["A"][0].__setitem__(0, 10 ** 400))),
+        "matrix A has 1 non-finite entry"),
+    "json_nan": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["B"][1].__setitem__(0, float("nan")))),
+        "matrix B has 1 non-finite entry"),
+    "json_names_as_string": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d.__setitem__("state_names", "qv"))),
+        "'state_names' must be a list of strings"),
+    "json_repeated_names": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d.__setitem__("state_names", ["q", "q"]))),
+        "state_names are not distinct"),
+    "json_matrix_not_a_list": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d.__setitem__("A", "eye"))), "'A' must be a matrix"),
+    "json_ragged": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d.__setitem__("A", [[1.0, 2.0], [3.0]]))),
+        "'A' is not a matrix of numbers"),
+    "json_bad_operating_point": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["operating_point"].__setitem__("q", "zero"))),
+        "field 'operating_point' is malformed"),
+    "json_missing_names": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d.pop("input_names"))), "missing 'input_names'"),
+    "npz_truncated": ("m.npz", lambda p, m: p.write_bytes(
+        m._serialized(p, ".npz")[:300]), "not an .npz archive"),
+    "npz_random_bytes": ("m.npz", lambda p, m: p.write_bytes(
+        np.random.default_rng(0).bytes(4096)), "not an .npz archive"),
+    "npz_empty": ("m.npz", lambda p, m: p.write_bytes(b""), "not an .npz archive"),
+    "npz_plain_npy": ("m.npz", lambda p, m: np.save(p.open("wb"), np.eye(2)),
+                      "not an .npz archive"),
+    "npz_foreign_zip": ("m.npz", lambda p, m: zipfile.ZipFile(p, "w").close(),
+                        "missing 'meta'"),
+    "npz_wrong_shape": ("m.npz", lambda p, m: _npz(p, **{**_valid_members(m),
+                                                        "A": np.eye(3)}),
+                        "A must be 2x2 to match the names given, got 3x3"),
+    "npz_text_matrix": ("m.npz", lambda p, m: _npz(p, **{**_valid_members(m),
+                                                        "A": np.array([["a", "b"]] * 2)}),
+                        "'A' must be a real matrix"),
+    "npz_names_2d": ("m.npz", lambda p, m: _npz(p, **{**_valid_members(m),
+                                                     "input_names": np.array([["u"]])}),
+                     "'input_names' must be a list of strings"),
+    "npz_header_claims_terabytes": ("m.npz", lambda p, m: _npz_member(
+        p, "A.npy", _npy_header((400_000, 400_000)) + bytes(16)),
+        "member 'A': its header declares shape (400000, 400000)"),
+    "npz_meta_not_json": ("m.npz", lambda p, m: _npz(p, **{**_valid_members(m),
+                                                          "meta": np.array("{oops")}),
+                          "'meta' is not valid JSON"),
+    "mat_missing_fields": ("m.mat", lambda p, m: __import__("scipy.io").io.savemat(
+        p, {"A": np.eye(2)}), "missing 'meta'"),
+    "mat_random_bytes": ("m.mat", lambda p, m: p.write_bytes(b"MATLAB" + bytes(500)),
+                         "not a MATLAB .mat file pinlin can read"),
+    "mat_names_not_cells": ("m.mat", lambda p, m: __import__("scipy.io").io.savemat(
+        p, {**m._arrays(), "state_names": np.eye(2), "input_names": np.eye(1),
+            "output_names": np.eye(1), "meta": "{}"}), "must be a cell array of strings"),
+}
+
+
+def _edit_json(model: LinearModel, edit) -> str:
+    doc = json.loads(model._serialized(Path("x.json"), ".json"))
+    edit(doc)
+    return json.dumps(doc)
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_bad_model_file_is_a_model_file_error(case, pendulum, tmp_path, capfd):
+    name, make, words = BAD_FILES[case]
+    path = tmp_path / name
+    make(path, pendulum)
+    with pytest.raises(ModelFileError) as info:
+        LinearModel.load(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: ") and words in message, message
+    assert "\n" not in message
+
+
+def test_object_arrays_are_never_unpickled(tmp_path):
+    """An .npz holding a pickled object whose unpickling would run code: refused, not run."""
+    marker = tmp_path / "pwned"
+
+    class Evil:
+        def __reduce__(self):
+            return (Path.touch, (marker,))
+
+    path = tmp_path / "evil.npz"
+    arr = np.empty(1, dtype=object)
+    arr[0] = Evil()
+    with path.open("wb") as fh:
+        np.savez(fh, A=arr, B=np.eye(1), C=np.eye(1), D=np.eye(1), state_names=np.array(["x"]),
+                 input_names=np.array(["u"]), output_names=np.array(["y"]),
+                 meta=np.array("{}"))
+    with pytest.raises(ModelFileError, match="member 'A': holds Python objects"):
+        LinearModel.load(path)
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda p: p.mkdir(), "is a folder, expected a model file"),
+    (lambda p: None, "file not found"),
+    (lambda p: os.mkfifo(p), "not a regular file"),   # would block a reader forever
+])
+def test_model_path_that_is_not_a_file(make, words, tmp_path):
+    path = tmp_path / "m.json"
+    make(path)
+    with pytest.raises(ModelFileError, match=words):
+        LinearModel.load(path)
+
+
+@pytest.mark.parametrize("name, words", [
+    ("m.txt", "unknown model format ('.txt'); expected .npz, .mat or .json"),
+    ("model", "unknown model format (no suffix)"),
+])
+def test_unknown_suffix(name, words, tmp_path, pendulum):
+    for call in (lambda: LinearModel.load(tmp_path / name),
+                 lambda: pendulum.save(tmp_path / name)):
+        with pytest.raises(ModelFileError) as info:
+            call()
+        assert words in str(info.value)
+    assert not (tmp_path / name).exists()
+
+
+@pytest.mark.parametrize("call", ["load", "save"])
+@pytest.mark.parametrize("path, words", [
+    (123, "expected a file path (str or os.PathLike), got int"),
+    (None, "got NoneType"),
+    (b"m.npz", "got bytes"),
+    ("", "expected a file name, got an empty string"),
+    ("m\0.npz", "contains a NUL character"),
+])
+def test_wrong_typed_paths(call, path, words, pendulum):
+    with pytest.raises(ArgumentError) as info:
+        LinearModel.load(path) if call == "load" else pendulum.save(path)
+    assert "argument 'path'" in str(info.value) and words in str(info.value)
+
+
+# ------------------------------------------------------------------ 3. atomic writes
+@pytest.mark.parametrize("suffix", FORMATS)
+def test_file_size_limit_leaves_the_old_model_intact(suffix, tmp_path, pendulum):
+    """`ulimit -f`: the write fails half-way; the old file is byte-identical, nothing else
+    appears, and the CLI says so in one line with exit 2."""
+    out = tmp_path / f"model{suffix}"
+    pendulum.save(out)
+    before = snapshot(tmp_path)
+    res = run_limited(["linearize", str(URDF_DIR / "double_pendulum.toml"), "--out", str(out)],
+                      limit=200, cwd=tmp_path)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.count("\n") == 1 and res.stderr.startswith("pinlin: error: ")
+    assert f"{out}: cannot write: File too large" in res.stderr
+    assert snapshot(tmp_path) == before
+    assert LinearModel.load(out).name == "pendulum"
+
+
+def test_file_size_limit_leaves_the_old_mjcf_intact(tmp_path):
+    out = tmp_path / "scene.xml"
+    out.write_text("<mujoco/>\n")
+    before = snapshot(tmp_path)
+    res = run_limited(["export-mjcf", "double_pendulum", "-o", str(out)], limit=100,
+                      cwd=tmp_path)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
+    assert "cannot write: File too large" in res.stderr
+    assert snapshot(tmp_path) == before
+
+
+def test_file_size_limit_leaves_old_validation_reports_intact(tmp_path):
+    reports = tmp_path / "reports"
+    reports.mkdir()
+    (reports / "README.md").write_text("# Validation reports\n\nold index\n")
+    (reports / "double_pendulum.md").write_text("# Validation of 'double_pendulum'\nold\n")
+    before = snapshot(tmp_path)
+    res = run_limited(["validate", "double_pendulum", "--out-dir", str(reports),
+                       "--no-progress"], limit=100, cwd=tmp_path)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.count("\n") == 1 and "cannot write: File too large" in res.stderr
+    assert snapshot(tmp_path) == before
+
+
+def test_file_size_limit_leaves_the_old_bench_report_intact(tmp_path):
+    """The bench's report and plots (the measurement itself is not needed to write them)."""
+    out = tmp_path / "reports"
+    (out / "accuracy_vs_time").mkdir(parents=True)
+    (out / "accuracy_vs_time.md").write_text("# What accuracy costs in time\nold\n")
+    (out / "accuracy_vs_time" / "sys.png").write_bytes(b"\x89PNG old")
+    before = snapshot(tmp_path)
+    source = (
+        "from pathlib import Path\n"
+        "from pinlin.bench import STEPS, Curve, SystemResult, plot, report\n"
+        "r = SystemResult('sys', 1, 'scene', 1e-4, 1e-12)\n"
+        "n = len(STEPS)\n"
+        "r.curves['fd3'] = Curve('fd3', list(STEPS), [1e-8] * n, [1e-4] * n)\n"
+        "import sys\n"
+        f"out = Path({str(out)!r})\n"
+        "for step in (lambda: plot([r], out), lambda: report([r], out, 'x')):\n"
+        "    try:\n"
+        "        step()\n"
+        "    except Exception as exc:\n"
+        "        print(type(exc).__name__, exc)\n")
+    res = run_python_limited(source, limit=100, cwd=tmp_path)
+    assert res.stdout.count("ModelFileError") == 2 and res.stdout.count("File too large") == 2, \
+        res.stdout + res.stderr
+    assert snapshot(tmp_path) == before
+
+
+def test_exception_while_serializing_leaves_no_trace(tmp_path):
+    """A writer that fails half-way (here: after writing some bytes)."""
+    target = tmp_path / "report.md"
+    target.write_text("old")
+
+    def writer(fh):
+        fh.write(b"new and partial")
+        raise RuntimeError("serializer broke")
+
+    with pytest.raises(RuntimeError, match="serializer broke"):
+        write_atomic(target, writer)
+    assert target.read_text() == "old"
+    no_temporaries(tmp_path)
+
+
+def test_unserializable_info_is_a_model_file_error_and_writes_nothing(tmp_path):
+    out = tmp_path / "m.json"
+    out.write_text("old")
+    model = dataclasses.replace(tiny(), info={"callback": object()})
+    for suffix in FORMATS:
+        with pytest.raises(ModelFileError, match="cannot save: the model's info"):
+            model.save(out.with_suffix(suffix))
+    assert out.read_text() == "old" and sorted(os.listdir(tmp_path)) == ["m.json"]
+
+
+def test_atomic_write_keeps_mode_and_follows_a_symlink(tmp_path):
+    real = tmp_path / "real.md"
+    real.write_text("old")
+    real.chmod(0o640)
+    link = tmp_path / "link.md"
+    link.symlink_to(real)
+    write_text_atomic(link, "new")
+    assert link.is_symlink() and real.read_text() == "new"
+    assert (real.stat().st_mode & 0o777) == 0o640
+    with pytest.raises(ModelFileError, match="it is a folder"), atomic_path(tmp_path):
+        pass
+    no_temporaries(tmp_path)
+
+
+def test_out_inside_a_file_writes_nothing(capfd, tmp_path):
+    """Replaces test_bad_input.py::test_unwritable_out_writes_nothing, which cannot fail as
+    root: here the folder of --out is a regular file, which stops root too."""
+    blocker = tmp_path / "notes.txt"
+    blocker.write_text("mine")
+    before = snapshot(tmp_path)
+    code, _, err = cli(capfd, "linearize", "pendulum", "--out", blocker / "m.npz")
+    assert_refused(code, err, "'", "notes.txt' is a file, not a folder")
+    code, _, err = cli(capfd, "export-mjcf", "double_pendulum", "-o", blocker / "m.xml")
+    assert_refused(code, err, "notes.txt' is a file, not a folder")
+    with pytest.raises(ModelFileError, match="is a file, not a folder"):
+        tiny().save(blocker / "m.npz")
+    assert snapshot(tmp_path) == before
+
+
+# ----------------------------------------------------------------------------- 4. CLI
+@pytest.mark.parametrize("dt", ["0", "-1", "nan", "inf", "1e999"])
+def test_export_mjcf_refuses_a_bad_time_step(dt, capfd, tmp_path):
+    out = tmp_path / "scene.xml"
+    code, _, err = cli(capfd, "export-mjcf", "double_pendulum", "-o", out, "--dt", dt)
+    assert_refused(code, err, "argument '--dt'", "finite number of seconds > 0")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"dt": 0.0}, "argument 'dt'"), ({"dt": float("nan")}, "argument 'dt'"),
+    ({"dt": -1e-3}, "argument 'dt'"), ({"dt": "1e-3"}, "expected a number, got str"),
+    ({"impedance": 1.0}, "argument 'impedance': must be strictly between 0 and 1"),
+])
+def test_mjcf_build_checks_its_arguments(kwargs, words):
+    from pinlin import mjcf
+
+    system = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml").system
+    with pytest.raises(ArgumentError) as info:
+        mjcf.build(system, **kwargs)
+    assert words in str(info.value)
+
+
+def test_validate_unknown_robot_writes_nothing(capfd, tmp_path):
+    out = tmp_path / "reports"
+    code, _, err = cli(capfd, "validate", "robocop", "--out-dir", out, "--no-progress")
+    assert_refused(code, err, "'robocop' is not a scene file, a URDF, a bundled scene")
+    assert not out.exists()
+    code, _, err = cli(capfd, "validate", "double_pendulum", tmp_path / "nowhere.urdf",
+                       "--out-dir", out, "--no-progress")
+    assert_refused(code, err, "nowhere.urdf")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("command", ["validate", "bench"])
+def test_out_dir_that_is_a_file(command, capfd, tmp_path):
+    blocker = tmp_path / "reports"
+    blocker.write_text("mine")
+    before = snapshot(tmp_path)
+    for out_dir in (blocker, blocker / "sub"):
+        code, _, err = cli(capfd, command, "double_pendulum", "--out-dir", out_dir,
+                           "--no-progress")
+        assert_refused(code, err, str(out_dir), "is a file")
+    code, _, err = cli(capfd, command, "double_pendulum", "--out-dir", "", "--no-progress")
+    assert_refused(code, err, "argument '--out-dir': needs a folder name")
+    assert snapshot(tmp_path) == before
+
+
+def test_validate_never_replaces_a_file_it_did_not_write(capfd, tmp_path):
+    """--out-dir . in a project: its README.md is the user's, not a validation index."""
+    (tmp_path / "README.md").write_text("# My project\n")
+    (tmp_path / "double_pendulum.md").write_text("my notes\n")
+    before = snapshot(tmp_path)
+    code, _, err = cli(capfd, "validate", "double_pendulum", "--out-dir", tmp_path,
+                       "--no-progress")
+    assert_refused(code, err, "was not written by pinlin", "double_pendulum.md")
+    (tmp_path / "double_pendulum.md").unlink()
+    del before["double_pendulum.md"]
+    code, _, err = cli(capfd, "validate", "double_pendulum", "--out-dir", tmp_path,
+                       "--no-progress")
+    assert_refused(code, err, "README.md", "was not written by pinlin")
+    assert snapshot(tmp_path) == before
+
+
+def test_bench_never_replaces_a_report_it_did_not_write(capfd, tmp_path):
+    (tmp_path / "accuracy_vs_time.md").write_text("my timings\n")
+    before = snapshot(tmp_path)
+    code, _, err = cli(capfd, "bench", "double_pendulum", "--out-dir", tmp_path,
+                       "--repeats", "1", "--no-progress")
+    assert_refused(code, err, "accuracy_vs_time.md", "was not written by pinlin")
+    assert snapshot(tmp_path) == before
+
+
+def test_validate_merges_into_an_existing_index(capfd, tmp_path):
+    (tmp_path / "README.md").write_text(
+        "# Validation reports\n\n| system | verdict | matrix error | eigenvalue error | rigid "
+        "| note |\n|---|---|---|---|---|---|\n"
+        "| [ur5](ur5.md) | pass | 1.0e-12 | 1.0e-12 | 0.0e+00 |  |\n")
+    code, out, _ = cli(capfd, "validate", "double_pendulum", "--out-dir", tmp_path,
+                       "--no-progress")
+    assert code == 0, out
+    index = (tmp_path / "README.md").read_text()
+    assert "| [ur5](ur5.md) | pass |" in index
+    assert "| [double_pendulum](double_pendulum.md) | pass |" in index
+    assert "Totals: pass: 2" in index
+    no_temporaries(tmp_path)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["linearize", "pendulum", "--out", ""], "argument '--out': needs a file name"),
+    (["linearize", "pendulum", "--out", "  "], "argument '--out': needs a file name"),
+    (["export-mjcf", "double_pendulum", "-o", ""], "argument '--output': needs a file name"),
+    (["bench", "double_pendulum", "--repeats", "100000000000000000000", "--no-progress"],
+     "--repeats must be >= 1 and <= 1000"),
+    (["bench", "double_pendulum", "--repeats", "-3", "--no-progress"],
+     "--repeats must be >= 1 and <= 1000"),
+    (["bench", "robocop", "--no-progress"], "'robocop' is not"),
+    (["validate", "--all", "ur5"], "argument '--all'"),
+    (["validate"], "name scenes or robots, or give --all"),
+    (["validate", "a/four_bar.toml", "b/four_bar.toml"], "would both write the report"),
+])
+def test_bad_output_arguments(argv, words, capfd, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = cli(capfd, *argv)
+    assert_refused(code, err, words)
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("target", ["folder.xml", "folder.npz"])
+def test_output_onto_a_folder(target, capfd, tmp_path):
+    (tmp_path / target).mkdir()
+    before = snapshot(tmp_path)
+    argv = (["export-mjcf", "double_pendulum", "-o"] if target.endswith(".xml")
+            else ["linearize", "pendulum", "--out"])
+    code, _, err = cli(capfd, *argv, tmp_path / target)
+    assert_refused(code, err, "it is a folder, expected a file name")
+    assert snapshot(tmp_path) == before
+
+
+def test_export_mjcf_never_overwrites_the_scenes_own_urdf(write_scene, capfd, tmp_path):
+    """A URDF named .xml is a valid scene input and a valid -o target: not the same file."""
+    scene = write_scene('urdf = "robot.xml"\n[effects]\ngravity = [0.0, 0.0, -9.81]\n',
+                        robot__xml=(URDF_DIR / "double_pendulum.urdf").read_text())
+    before = snapshot(tmp_path)
+    code, _, err = cli(capfd, "export-mjcf", scene, "-o", tmp_path / "robot.xml")
+    assert_refused(code, err, "robot.xml: is an input of the scene")
+    assert snapshot(tmp_path) == before
+
+
+def test_report_names_stay_inside_the_output_folder():
+    from pinlin.bench import report_label
+    from pinlin.validate import report_name
+
+    for f in (report_name, report_label):
+        assert f("../../etc/x.urdf") == "x" and f("/abs/path/scene.toml") == "scene"
+        assert f("ur5") == "ur5"
