@@ -46,7 +46,7 @@ def read_mimic_tags(urdf: Path) -> tuple[MimicCoupling, ...]:
     except ET.ParseError as exc:
         raise UrdfError(urdf, f"malformed XML: {exc}") from None
     out = []
-    for joint in root.iter("joint"):
+    for joint in root.findall("joint"):  # not <transmission><joint>
         tag = joint.find("mimic")
         if tag is None:
             continue

@@ -35,7 +35,7 @@ from .formulations import (
 from .formulations.constrained import penalty_parameters
 from .linear_model import LinearModel
 from .operating_point import OperatingPoint, configuration, hold_at_rest
-from .scene import Scene
+from .scene import POSITION_LIMIT, Scene
 from .system import System
 
 #: A numerical model whose estimated relative error of A exceeds this gets an AccuracyWarning
@@ -84,6 +84,10 @@ def _configuration(system: System, q: object) -> np.ndarray:
                          f"'{system.scene.name}', got shape {q0.shape}")
     if not np.all(np.isfinite(q0)):
         raise ShapeError("q contains NaN or inf")
+    if np.abs(q0).max(initial=0.0) > POSITION_LIMIT:
+        raise ShapeError(f"q has an entry of size {np.abs(q0).max():.3g}; positions and angles "
+                         f"are limited to |q| <= {POSITION_LIMIT:g} m or rad (beyond, float "
+                         "spacing approaches the finite-difference steps)")
     if not pin.isNormalized(system.model, q0, 1e-6):
         raise ShapeError("q is not normalized: its quaternion or (cos, sin) parts must have "
                          "unit norm")

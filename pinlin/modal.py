@@ -20,17 +20,24 @@ the O(sqrt(eps) |lam|max) spread that rounding gives a zero eigenvalue of a Jord
 from __future__ import annotations
 
 import functools
+import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 
-from .exceptions import PinlinError
+from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 
 METHODS = ("auto", "symmetric", "general")
 RIGID_RTOL = 1e-6
 SYMMETRY_RTOL = 1e-8
+#: Largest |entry| of the matrices modal analyses. The eigensolvers and this module square
+#: entries (K + K^T, |lam|^2 = K/M, vector norms, kappa eps max|A|): 1e150^2 = 1e300 stays
+#: below float64's 1.8e308. A physical model in SI units is many decades below (see the
+#: ranges in :mod:`pinlin.scene`); one beyond is refused rather than analysed into inf/NaN.
+ENTRY_LIMIT = 1e150
 
 
 def symmetric_applicable(model: LinearModel) -> bool:
@@ -209,10 +216,23 @@ def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None =
             ``"symmetric"`` or ``"general"``.
         rigid_tol: |lam| below which an eigenvalue is a rigid-body mode [rad/s]; default
             ``1e-6 * max(1, max |lam|)``.
+
+    Raises:
+        ArgumentError: ``model`` is not a LinearModel, ``method`` unknown, ``rigid_tol`` not a
+            finite number >= 0.
+        ModelError: a matrix of the model has a NaN, an inf or an entry beyond
+            :data:`ENTRY_LIMIT` (the message names the matrix and the entry).
+        PinlinError: ``method="symmetric"`` for a model it does not apply to.
     """
-    if method not in METHODS:
-        raise PinlinError(f"unknown eigensolver method '{method}'; expected one of "
-                          f"{', '.join(METHODS)}")
+    if not isinstance(model, LinearModel):
+        raise ArgumentError("model", f"expected a pinlin LinearModel, got "
+                                     f"{type(model).__name__}")
+    if not isinstance(method, str) or method not in METHODS:
+        raise ArgumentError("method", f"unknown eigensolver method {method!r:.60}; expected one "
+                                      f"of {', '.join(METHODS)}")
+    if rigid_tol is not None:
+        _check_rigid_tol(rigid_tol)
+    _check_entries(model)
     if model.E is not None and np.any(model.E):
         model = model.standard_form()
     use_symmetric = symmetric_applicable(model) if method == "auto" else method == "symmetric"
@@ -239,11 +259,41 @@ def _normalize_shapes(shapes: np.ndarray) -> np.ndarray:
     return out / pivot
 
 
+def _check_rigid_tol(rigid_tol: object) -> float:
+    """``rigid_tol`` as a float: a real number (not a bool), finite and >= 0 [rad/s]."""
+    bad = ArgumentError("rigid_tol", f"expected a finite number >= 0 [rad/s] or None, got "
+                                     f"{type(rigid_tol).__name__} {rigid_tol!r:.60}")
+    if not isinstance(rigid_tol, numbers.Real) or isinstance(rigid_tol, bool | np.bool_):
+        raise bad
+    try:
+        value = float(rigid_tol)
+    except (OverflowError, ValueError, TypeError):
+        raise bad from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise bad
+    return value
+
+
+def _check_entries(model: LinearModel) -> None:
+    """Refuse a model whose matrices modal reads hold NaN, inf or |entry| > ENTRY_LIMIT."""
+    for key in ("A", "E", "M", "C_damp", "K"):
+        mat = getattr(model, key)
+        if mat is None or mat.size == 0:
+            continue
+        with np.errstate(invalid="ignore"):
+            bad = ~(np.abs(mat) <= ENTRY_LIMIT)  # NaN compares False
+        if not bad.any():
+            continue
+        i, j = (int(k) for k in np.argwhere(bad)[0])
+        raise ModelError(f"model '{model.name}': matrix {key} has {int(bad.sum())} entries "
+                         f"that are NaN, inf or beyond {ENTRY_LIMIT:g} in magnitude (first "
+                         f"{key}[{i}, {j}] = {mat[i, j]:.3g}); modal analysis needs finite "
+                         f"entries with |x| <= {ENTRY_LIMIT:g} (float64 squares them)")
+
+
 def _rigid_tol(magnitudes: np.ndarray, rigid_tol: float | None) -> float:
     if rigid_tol is not None:
-        if not (np.isfinite(rigid_tol) and rigid_tol >= 0):
-            raise PinlinError(f"rigid_tol must be a finite number >= 0 [rad/s], got {rigid_tol!r}")
-        return float(rigid_tol)
+        return _check_rigid_tol(rigid_tol)
     return RIGID_RTOL * max(1.0, float(magnitudes.max(initial=0.0)))
 
 

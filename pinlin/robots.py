@@ -6,6 +6,12 @@ seconds per robot and is useless for linearization. For loaders that use the gen
 exactly that recipe with ``pin.buildModelFromUrdf`` and ``readParamsFromSrdf``; loaders that
 change the model in their own ``__init__`` (e.g. ``talos_legs``, ``human``) are run as they are.
 ``tests/test_robots.py`` checks that both routes give the same model.
+
+urdfdom prints some faults on stderr and goes on with a different robot (a zeroed inertia, a
+dropped visual): every complaint it prints while a robot loads is a :class:`RobotLoadError`.
+(The XML checks of :func:`pinlin.urdf_io.check_urdf` are not applied here: the physical checks
+on inertia tensors refuse placeholder links that several example-robot-data robots carry, e.g.
+tiago, pr2, anymal; Pinocchio's merged bodies of those robots are physical.)
 """
 
 from __future__ import annotations
@@ -19,8 +25,8 @@ from os.path import join
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import RobotLoadError, UnknownRobotError
-from .urdf_io import quiet_stderr
+from .exceptions import PinlinError, RobotLoadError, UnknownRobotError
+from .urdf_io import complaint_summary, quiet_stderr, urdfdom_complaints
 
 
 @dataclass(frozen=True)
@@ -70,11 +76,19 @@ def _build_generic(name: str, loader_cls) -> RobotModel:
     rel = join(loader_cls.path, loader_cls.urdf_subpath, loader_cls.urdf_filename)
     model_path = getModelPath(rel)
     urdf_path = join(model_path, rel)
-    with quiet_stderr():
-        if loader_cls.free_flyer:
-            model = pin.buildModelFromUrdf(urdf_path, pin.JointModelFreeFlyer())
+    with quiet_stderr() as captured:
+        try:
+            if loader_cls.free_flyer:
+                model = pin.buildModelFromUrdf(urdf_path, pin.JointModelFreeFlyer())
+            else:
+                model = pin.buildModelFromUrdf(urdf_path)
+        except (ValueError, RuntimeError) as exc:
+            failure: Exception | None = exc
         else:
-            model = pin.buildModelFromUrdf(urdf_path)
+            failure = None
+    _raise_on_complaints(name, urdf_path, captured)
+    if failure is not None:
+        raise failure
     srdf_path = None
     if loader_cls.srdf_filename:
         srdf_path = join(
@@ -89,9 +103,25 @@ def _build_generic(name: str, loader_cls) -> RobotModel:
                       srdf_path)
 
 
+def _raise_on_complaints(name: str, urdf_path: str, captured: list[str]) -> None:
+    """Turn what urdfdom printed while loading robot ``name`` into a :class:`RobotLoadError`."""
+    complaints = urdfdom_complaints(captured[0] if captured else "")
+    if complaints:
+        raise RobotLoadError(name, f"urdfdom reports on {urdf_path}: "
+                                   f"{complaint_summary(complaints)}")
+
+
 def _build_with_loader(name: str, loader_cls) -> RobotModel:
-    with quiet_stderr(), contextlib.redirect_stdout(io.StringIO()):
-        loader = loader_cls()
+    with quiet_stderr() as captured, contextlib.redirect_stdout(io.StringIO()):
+        try:
+            loader = loader_cls()
+        except Exception as exc:  # reported below, after urdfdom's complaints if any
+            failure: Exception | None = exc
+        else:
+            failure = None
+    _raise_on_complaints(name, loader_cls.urdf_filename or "its model file", captured)
+    if failure is not None:
+        raise failure
     robot = loader.robot
     return RobotModel(name, robot.model, np.asarray(robot.q0, float), loader_cls.free_flyer,
                       loader.df_path, getattr(loader, "srdf_path", None))
@@ -107,6 +137,8 @@ def _load_cached(name: str) -> RobotModel:
         if _uses_generic_recipe(loader_cls):
             return _build_generic(name, loader_cls)
         return _build_with_loader(name, loader_cls)
+    except PinlinError:
+        raise
     except Exception as exc:  # the loaders raise anything: ImportError, OSError, ValueError
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise RobotLoadError(name, reason) from exc

@@ -38,13 +38,45 @@ File format (paths relative to the scene file)::
     [outputs]                            # absent: the whole state is the output
     frames = ["tip"]                     # frame positions in the world frame [m]
     joints = ["shoulder", "q:elbow", "v:elbow"]   # name: position and velocity
+
+Ranges. Every number is an SI value and must be finite; magnitudes are bounded so that nothing
+a scene asks for can overflow float64 (max 1.8e308) anywhere downstream:
+
+- positions and angles (``operating_point.q``, spring ``rest``, free-flyer ``position`` and
+  ``rpy``): ``|x| <= POSITION_LIMIT`` = 1e6 [m or rad]. The spacing of float64 numbers near x is
+  |x| * 2.2e-16, 2.2e-10 at the limit: five decades below the smallest default finite-difference
+  step (1e-5), so a linearization there still resolves its perturbations. Beyond 2.8e16 the
+  spacing exceeds 2 pi and an angle has no digit left at all (sin(1e300) is noise).
+- coefficients (``gravity`` [m/s^2], ``damping``, spring ``stiffness``, ``armature``,
+  ``operating_point.u`` [N*m or N]): ``|x| <= COEFFICIENT_LIMIT`` = 1e12. The entries of a
+  linear model are such a coefficient times at most a mass, a length squared or an inverse
+  inertia of the robot (K ~ m g L, k; C ~ c; M ~ m L^2 + armature; A = M^-1 K), and the
+  eigen-analysis squares them (|lam|^2 = K/M, K + K^T, norms). With coefficients <= 1e12 and a
+  physical robot (masses and lengths within 1e-6..1e6 in SI) every entry stays below ~1e30 and
+  its square below ~1e60: more than 200 decades from overflow, room left for ill-conditioned
+  mass matrices. 1e12 also covers physics: the surface gravity of a neutron star is ~1e12 m/s^2,
+  the stiffest structural joints ~1e10 N*m/rad.
+- the steady rotation ``rate`` [rad/s]: ``|rate| <= RATE_LIMIT`` = 1e6, because it enters
+  squared (centrifugal stiffness m rate^2 L^2): rate^2 <= 1e12 keeps it in the coefficients'
+  range (fast ultracentrifuges spin at ~1e4 rad/s).
+
+Integers too large for a float (TOML allows any number of digits), non-finite values, booleans
+where numbers are expected, names with control characters (they would break one-line error
+messages) and lists nested where a number is expected are refused with a :class:`SceneError`
+naming the file and the field.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import numbers
+import os
+import re
+import reprlib
+import sys
 import tomllib
+import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -53,9 +85,16 @@ from typing import Any
 
 import numpy as np
 
-from .exceptions import SceneError, UnknownRobotError
+from .exceptions import ArgumentError, SceneError, UnknownRobotError
 
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
+#: Largest |position| or |angle| a scene may give [m or rad] (see the module docstring).
+POSITION_LIMIT = 1e6
+#: Largest |coefficient| a scene may give: gravity [m/s^2], damping, stiffness, armature and
+#: inputs in SI units (see the module docstring).
+COEFFICIENT_LIMIT = 1e12
+#: Largest |rate| of a steady rotation [rad/s] (it enters squared).
+RATE_LIMIT = 1e6
 
 _TOP_KEYS = ("name", "urdf", "robot", "base", "effects", "operating_point", "inputs", "outputs",
              "loops")
@@ -135,6 +174,11 @@ class Effects:
     rotation: Rotation | None = None
     mimic: bool = False
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.mimic, bool):
+            raise SceneError(None, "effects.mimic",
+                             f"expected true or false, got {_show(self.mimic)}")
+
     def in_play(self) -> list[str]:
         """Names of the effects present, in a fixed order."""
         return [k for k in _EFFECT_KEYS if getattr(self, k) not in (None, False, {})]
@@ -162,6 +206,15 @@ class OperatingPointSpec:
     solve: str = "inputs"
     u: JointValues = field(default_factory=dict)
     allow_non_equilibrium: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.allow_non_equilibrium, bool):
+            raise SceneError(None, "operating_point.allow_non_equilibrium",
+                             f"expected true or false, got {_show(self.allow_non_equilibrium)}")
+        if self.solve not in _SOLVE_MODES:
+            raise SceneError(None, "operating_point.solve",
+                             f"expected one of {', '.join(repr(c) for c in _SOLVE_MODES)}, "
+                             f"got {_show(self.solve)}")
 
 
 @dataclass(frozen=True)
@@ -212,17 +265,27 @@ class Scene:
         """Read a scene TOML file.
 
         Raises:
-            SceneError: missing file, malformed TOML, unknown key or bad value (the message names
-                the file and the field).
+            ArgumentError: ``path`` is not a path (str or os.PathLike).
+            SceneError: missing or unreadable file, malformed TOML (also: arrays nested too
+                deeply, integers with more digits than Python converts), unknown key or bad
+                value (the message names the file and the field).
         """
-        path = Path(path)
-        if not path.is_file():
+        path = _path_argument("path", path)
+        try:
+            found = path.is_file()
+        except OSError as exc:  # e.g. a name too long for the file system
+            raise SceneError(_short(path), None, f"cannot use the path: {exc.strerror}") \
+                from None
+        if not found:
             raise SceneError(path, None, "scene file not found")
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise SceneError(path, None, f"malformed TOML: {exc}") from None
-        return cls.from_dict(data, source=path)
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as exc:
+            raise SceneError(path, None, f"malformed TOML: not UTF-8 text ({exc.reason})") \
+                from None
+        except OSError as exc:
+            raise SceneError(path, None, f"cannot read the file: {exc.strerror}") from None
+        return cls.from_dict(_parse_toml(path, text), source=path)
 
     @classmethod
     def from_robot(cls, name: str, **overrides: Any) -> Scene:
@@ -236,6 +299,9 @@ class Scene:
         """
         from .robots import load_robot
 
+        if not isinstance(name, str) or not name or not _clean(name):
+            raise ArgumentError("name", "expected an example-robot-data robot name (a "
+                                        f"non-empty string), got {_show(name)}")
         effects: dict[str, Any] = {"gravity": list(STANDARD_GRAVITY)}
         if np.any(load_robot(name).model.armature):
             effects["armature"] = True
@@ -245,8 +311,12 @@ class Scene:
 
     @classmethod
     def from_urdf(cls, path: str | Path, **overrides: Any) -> Scene:
-        """Scene for a URDF file: fixed base, standard gravity, all joints actuated."""
-        path = Path(path).resolve()
+        """Scene for a URDF file: fixed base, standard gravity, all joints actuated.
+
+        Raises:
+            ArgumentError: ``path`` is not a path (str or os.PathLike).
+        """
+        path = _path_argument("path", path).resolve()
         data: dict[str, Any] = {
             "name": path.stem,
             "urdf": str(path),
@@ -257,8 +327,12 @@ class Scene:
 
     @classmethod
     def resolve(cls, target: str | Path) -> Scene:
-        """Scene for a scene file, a URDF file, a bundled scene name or a robot name."""
-        path = Path(target)
+        """Scene for a scene file, a URDF file, a bundled scene name or a robot name.
+
+        Raises:
+            ArgumentError: ``target`` is not a str or os.PathLike.
+        """
+        path = _path_argument("target", target)
         if path.suffix == ".toml":
             return cls.load(path)
         if path.suffix == ".urdf":
@@ -275,8 +349,17 @@ class Scene:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str | Path | None = None) -> Scene:
         """Build a scene from the TOML's dict form; ``source`` is used in error messages and to
-        resolve a relative ``urdf`` path."""
-        return _parse_scene(data, Path(source) if source is not None else None)
+        resolve a relative ``urdf`` path.
+
+        Raises:
+            ArgumentError: ``data`` is not a mapping or ``source`` not a path.
+            SceneError: unknown key or bad value (the message names the field).
+        """
+        if not isinstance(data, Mapping):
+            raise ArgumentError("data", "expected a table (dict) of scene fields, got "
+                                        f"{_show(data)}")
+        return _parse_scene(data, _path_argument("source", source) if source is not None
+                            else None)
 
     # ----------------------------------------------------------------------------------------
     @functools.cached_property
@@ -302,44 +385,153 @@ def bundled_scenes() -> dict[str, Path]:
 
 
 # ------------------------------------------------------------------------------------------------
+# Arguments and the TOML text.
+
+
+def _path_argument(argument: str, value: Any) -> Path:
+    """``value`` as a Path, or an :class:`ArgumentError` naming ``argument``."""
+    if not isinstance(value, str | os.PathLike):
+        raise ArgumentError(argument, f"expected a file path (str or os.PathLike), got "
+                                      f"{_show(value)}")
+    try:
+        path = Path(value)
+    except TypeError:  # an os.PathLike whose __fspath__ returns bytes or junk
+        raise ArgumentError(argument, f"expected a file path (str or os.PathLike), got "
+                                      f"{_show(value)}") from None
+    if not _clean(str(path)):
+        raise ArgumentError(argument, f"expected a file path without control characters, got "
+                                      f"{_show(str(path))}")
+    return path
+
+
+def _short(path: Path) -> str:
+    """``path`` for a message, shortened when it is very long."""
+    text = str(path)
+    return text if len(text) <= 200 else f"{text[:100]}...{text[-60:]}"
+
+
+def _parse_toml(path: Path, text: str) -> dict[str, Any]:
+    """``tomllib.loads(text)`` with every failure turned into a :class:`SceneError`.
+
+    tomllib recurses once per nesting level (RecursionError past Python's limit) and converts
+    integers with ``int()``, which refuses more than ``sys.get_int_max_str_digits()`` digits
+    (ValueError). For the latter the field is located by parsing again with every such run of
+    digits replaced by 10^400 (no float either), so that the field checks name it.
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(path, None, f"malformed TOML: {exc}") from None
+    except RecursionError:
+        raise SceneError(path, None, "malformed TOML: arrays or tables nested too deeply "
+                                     "(beyond Python's recursion limit)") from None
+    except ValueError as exc:
+        detail = str(exc).split(";")[0]
+    limit = sys.get_int_max_str_digits()
+    if limit:
+        stand_in = 10 ** 400
+        shortened = re.sub(f"[0-9][0-9_]{{{limit - 1},}}", str(stand_in), text)
+        try:
+            data = tomllib.loads(shortened)
+        except (tomllib.TOMLDecodeError, RecursionError, ValueError):
+            data = None
+        if data is not None:
+            try:
+                _parse_scene(data, path)
+            except SceneError as exc:  # names the field of the huge integer
+                reason = exc.reason.replace(_show(stand_in),
+                                            f"an integer of more than {limit} digits")
+                raise SceneError(path, exc.field, reason) from None
+    raise SceneError(path, None, f"malformed TOML: {detail}")
+
+
+# ------------------------------------------------------------------------------------------------
 # Parsing helpers. Each takes the source (for messages) and the dotted field name.
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel = 3
+_REPR.maxstring = _REPR.maxother = 60
+_REPR.maxlong = 40
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+_BREAKING = ("Cc", "Cs", "Zl", "Zp")  # control, lone surrogate, line and paragraph separators
+
+
+def _clean(text: str) -> bool:
+    """Whether ``text`` can appear in a one-line message: no control characters, line or
+    paragraph separators, or lone surrogates (which no terminal encoding can print)."""
+    return not any(unicodedata.category(c) in _BREAKING for c in text)
+
+
+def _show(x: Any) -> str:
+    """A short one-line representation of a user's value for an error message: bounded in
+    length and depth (a list nested a million deep, a megabyte string), no conversion of
+    integers too long for ``str()``, control characters escaped."""
+    if isinstance(x, int) and not isinstance(x, bool) and x.bit_length() > 128:
+        return f"an integer of about {int(x.bit_length() * math.log10(2)) + 1} digits"
+    try:
+        text = _REPR.repr(x)
+    except Exception:  # a failing __repr__, a huge integer inside a container, ...
+        text = f"a {type(x).__name__}"
+    if not _clean(text):
+        text = text.encode("unicode_escape", "backslashreplace").decode("ascii")
+    return text
 
 
 def _is_number(x: Any) -> bool:
-    return isinstance(x, int | float) and not isinstance(x, bool)
+    return isinstance(x, numbers.Real) and not isinstance(x, bool | np.bool_)
 
 
-def _number(src, fld: str, x: Any, *, minimum: float | None = None, unit: str = "") -> float:
+def _is_sequence(x: Any) -> bool:
+    return isinstance(x, list | tuple) or (isinstance(x, np.ndarray) and x.ndim == 1)
+
+
+def _number(src, fld: str, x: Any, *, limit: float, minimum: float | None = None,
+            unit: str = "") -> float:
+    """A finite float with ``minimum <= x`` and ``|x| <= limit`` (``unit`` for messages)."""
     if not _is_number(x):
-        raise SceneError(src, fld, f"expected a number{unit}, got {x!r}")
-    value = float(x)
+        raise SceneError(src, fld, f"expected a number{unit}, got {_show(x)}")
+    try:
+        value = float(x)
+    except (OverflowError, ValueError, TypeError):
+        raise SceneError(src, fld, f"expected a number{unit} with |value| <= {limit:g}, got "
+                                   f"{_show(x)}, too large for a float") from None
     if not math.isfinite(value):
-        raise SceneError(src, fld, f"expected a finite number{unit}, got {x!r}")
+        raise SceneError(src, fld, f"expected a finite number{unit}, got {_show(x)}")
     if minimum is not None and value < minimum:
-        raise SceneError(src, fld, f"expected a number >= {minimum:g}{unit}, got {x!r}")
+        raise SceneError(src, fld, f"expected a number >= {minimum:g}{unit}, got {value:.6g}")
+    if abs(value) > limit:
+        raise SceneError(src, fld, f"expected a number{unit} with |value| <= {limit:g}, got "
+                                   f"{value:.6g} (beyond pinlin's range for this quantity; see "
+                                   "pinlin.scene)")
     return value
 
 
-def _numbers(src, fld: str, x: Any, *, length: int | None = None, unit: str = "",
-             minimum: float | None = None) -> tuple[float, ...]:
-    if not isinstance(x, list):
-        raise SceneError(src, fld, f"expected a list of numbers{unit}, got {x!r}")
+def _numbers(src, fld: str, x: Any, *, limit: float, length: int | None = None,
+             unit: str = "", minimum: float | None = None) -> tuple[float, ...]:
+    if not _is_sequence(x):
+        raise SceneError(src, fld, f"expected a list of numbers{unit}, got {_show(x)}")
     if length is not None and len(x) != length:
         raise SceneError(src, fld, f"expected {length} numbers{unit}, got {len(x)}")
-    return tuple(_number(src, f"{fld}[{i}]", v, minimum=minimum, unit=unit)
+    return tuple(_number(src, f"{fld}[{i}]", v, limit=limit, minimum=minimum, unit=unit)
                  for i, v in enumerate(x))
 
 
-def _table(src, fld: str, x: Any) -> Mapping[str, Any]:
+def _table(src, fld: str | None, x: Any) -> Mapping[str, Any]:
     if not isinstance(x, Mapping):
-        raise SceneError(src, fld, f"expected a table, got {x!r}")
+        raise SceneError(src, fld, f"expected a table, got {_show(x)}")
     return x
+
+
+def _field(fld: str | None, key: Any) -> str:
+    """``fld.key``, the key shown safely when it is not a clean non-empty string."""
+    shown = key if isinstance(key, str) and key and _clean(key) else _show(key)
+    return f"{fld}.{shown}" if fld else shown
 
 
 def _check_keys(src, fld: str | None, table: Mapping[str, Any], known: tuple[str, ...],
                 planned: tuple[str, ...] = ()) -> None:
     for key in table:
-        name = f"{fld}.{key}" if fld else key
+        name = _field(fld, key)
         if key in planned:
             raise SceneError(src, name, "is not supported by this version of pinlin")
         if key not in known:
@@ -348,31 +540,50 @@ def _check_keys(src, fld: str | None, table: Mapping[str, Any], known: tuple[str
 
 def _string(src, fld: str, x: Any, choices: tuple[str, ...] | None = None) -> str:
     if not isinstance(x, str) or not x:
-        raise SceneError(src, fld, f"expected a non-empty string, got {x!r}")
+        raise SceneError(src, fld, f"expected a non-empty string, got {_show(x)}")
+    if not _clean(x):
+        raise SceneError(src, fld, f"expected a string without control characters or line "
+                                   f"breaks, got {_show(x)}")
     if choices is not None and x not in choices:
         raise SceneError(src, fld, f"expected one of {', '.join(repr(c) for c in choices)}, "
-                                   f"got {x!r}")
+                                   f"got {_show(x)}")
     return x
 
 
 def _names(src, fld: str, x: Any) -> tuple[str, ...]:
-    if not isinstance(x, list) or not all(isinstance(n, str) and n for n in x):
-        raise SceneError(src, fld, f"expected a list of names, got {x!r}")
-    if len(set(x)) != len(x):
-        dup = next(n for n in x if x.count(n) > 1)
-        raise SceneError(src, fld, f"name '{dup}' is listed twice")
-    return tuple(x)
+    """A list of distinct non-empty names."""
+    if not isinstance(x, list | tuple):
+        raise SceneError(src, fld, f"expected a list of names, got {_show(x)}")
+    names = tuple(_string(src, f"{fld}[{i}]", n) for i, n in enumerate(x))
+    seen: set[str] = set()
+    for n in names:
+        if n in seen:
+            raise SceneError(src, fld, f"name '{n}' is listed twice")
+        seen.add(n)
+    return names
+
+
+def _joint_table(src, fld: str, x: Any) -> Mapping[str, Any]:
+    """A table keyed by joint names (non-empty strings without control characters)."""
+    table = _table(src, fld, x)
+    for key in table:
+        if not isinstance(key, str) or not key or not _clean(key):
+            raise SceneError(src, fld, "expected joint names (non-empty strings without control "
+                                       f"characters) as keys, got {_show(key)}")
+    return table
 
 
 def _per_joint(src, fld: str, x: Any, unit: str) -> JointValues | bool:
     if x is True:
         return True
-    table = _table(src, fld, x)
+    table = _joint_table(src, fld, x)
     out: dict[str, float | tuple[float, ...]] = {}
     for joint, value in table.items():
         f = f"{fld}.{joint}"
-        out[joint] = (_numbers(src, f, value, unit=unit, minimum=0.0) if isinstance(value, list)
-                      else _number(src, f, value, minimum=0.0, unit=unit))
+        out[joint] = (_numbers(src, f, value, unit=unit, minimum=0.0, limit=COEFFICIENT_LIMIT)
+                      if _is_sequence(value)
+                      else _number(src, f, value, minimum=0.0, unit=unit,
+                                   limit=COEFFICIENT_LIMIT))
     return out
 
 
@@ -385,7 +596,8 @@ def _parse_effects(src, x: Any) -> Effects:
         if g is True:
             gravity = STANDARD_GRAVITY
         elif g is not False:
-            gravity = _numbers(src, "effects.gravity", g, length=3, unit=" [m/s^2]")
+            gravity = _numbers(src, "effects.gravity", g, length=3, unit=" [m/s^2]",
+                               limit=COEFFICIENT_LIMIT)
     armature = damping = None
     if "armature" in table and table["armature"] is not False:
         armature = _per_joint(src, "effects.armature", table["armature"], " [kg*m^2 or kg]")
@@ -394,7 +606,7 @@ def _parse_effects(src, x: Any) -> Effects:
     springs = None
     if "springs" in table:
         springs = {}
-        for joint, spec in _table(src, "effects.springs", table["springs"]).items():
+        for joint, spec in _joint_table(src, "effects.springs", table["springs"]).items():
             f = f"effects.springs.{joint}"
             spec = _table(src, f, spec)
             _check_keys(src, f, spec, ("stiffness", "rest"))
@@ -402,8 +614,9 @@ def _parse_effects(src, x: Any) -> Effects:
                 raise SceneError(src, f"{f}.stiffness", "missing; expected a number >= 0")
             springs[joint] = Spring(
                 _number(src, f"{f}.stiffness", spec["stiffness"], minimum=0.0,
-                        unit=" [N*m/rad or N/m]"),
-                _number(src, f"{f}.rest", spec.get("rest", 0.0), unit=" [rad or m]"),
+                        unit=" [N*m/rad or N/m]", limit=COEFFICIENT_LIMIT),
+                _number(src, f"{f}.rest", spec.get("rest", 0.0), unit=" [rad or m]",
+                        limit=POSITION_LIMIT),
             )
     rotation = None
     if "rotation" in table and table["rotation"] is not False:
@@ -413,20 +626,25 @@ def _parse_effects(src, x: Any) -> Effects:
         for key in ("axis", "rate"):
             if key not in spec:
                 raise SceneError(src, f"{f}.{key}", "missing")
-        axis = np.array(_numbers(src, f"{f}.axis", spec["axis"], length=3))
-        norm = float(np.linalg.norm(axis))
-        if norm == 0.0:
+        # A direction: any finite non-zero vector, scaled by its largest entry before the norm
+        # so that neither 1e300 nor 1e-300 entries overflow or underflow.
+        axis = np.array(_numbers(src, f"{f}.axis", spec["axis"], length=3, limit=math.inf))
+        largest = float(np.abs(axis).max())
+        if largest == 0.0:
             raise SceneError(src, f"{f}.axis", "expected a non-zero vector")
-        rotation = Rotation(tuple(float(a) for a in axis / norm),
-                            _number(src, f"{f}.rate", spec["rate"], unit=" [rad/s]"))
+        axis = axis / largest
+        axis = axis / np.linalg.norm(axis)
+        rotation = Rotation(tuple(float(a) for a in axis),
+                            _number(src, f"{f}.rate", spec["rate"], unit=" [rad/s]",
+                                    limit=RATE_LIMIT))
     mimic = table.get("mimic", False)
     if not isinstance(mimic, bool):
-        raise SceneError(src, "effects.mimic", f"expected true or false, got {mimic!r}")
+        raise SceneError(src, "effects.mimic", f"expected true or false, got {_show(mimic)}")
     return Effects(gravity, armature, damping, springs, rotation, mimic)
 
 
 def _parse_loops(src, x: Any) -> tuple[Loop, ...]:
-    if not isinstance(x, list):
+    if not isinstance(x, list | tuple):
         raise SceneError(src, "loops", "expected an array of tables ([[loops]])")
     loops: list[Loop] = []
     for i, entry in enumerate(x):
@@ -449,43 +667,53 @@ def _parse_loops(src, x: Any) -> tuple[Loop, ...]:
 
 
 def _parse_joint_position(src, fld: str, x: Any) -> Any:
+    """One entry of ``operating_point.q``: a number (the position [rad or m] of a 1-DoF joint;
+    the angle of a continuous joint), a list (the joint's raw configuration values; unit-norm
+    parts are checked against the joint when the system is built), or a table for a free-flyer
+    or spherical joint (``position`` [m], and ``rpy`` [rad] or a unit ``quaternion``)."""
     if _is_number(x):
-        return _number(src, fld, x, unit=" [rad or m]")
-    if isinstance(x, list):
-        return _numbers(src, fld, x)
+        return _number(src, fld, x, unit=" [rad or m]", limit=POSITION_LIMIT)
+    if _is_sequence(x):
+        return _numbers(src, fld, x, limit=POSITION_LIMIT)
     if isinstance(x, Mapping):
         _check_keys(src, fld, x, ("position", "rpy", "quaternion"))
+        if not x:
+            raise SceneError(src, fld, "empty table; expected position, rpy or quaternion")
         if "rpy" in x and "quaternion" in x:
             raise SceneError(src, fld, "give either 'rpy' or 'quaternion', not both")
         out: dict[str, tuple[float, ...]] = {}
         if "position" in x:
             out["position"] = _numbers(src, f"{fld}.position", x["position"], length=3,
-                                       unit=" [m]")
+                                       unit=" [m]", limit=POSITION_LIMIT)
         if "rpy" in x:
-            out["rpy"] = _numbers(src, f"{fld}.rpy", x["rpy"], length=3, unit=" [rad]")
+            out["rpy"] = _numbers(src, f"{fld}.rpy", x["rpy"], length=3, unit=" [rad]",
+                                  limit=POSITION_LIMIT)
         if "quaternion" in x:
-            quat = _numbers(src, f"{fld}.quaternion", x["quaternion"], length=4)
-            norm = math.sqrt(sum(c * c for c in quat))
+            quat = _numbers(src, f"{fld}.quaternion", x["quaternion"], length=4,
+                            limit=math.inf)
+            norm = math.hypot(*quat)  # no overflow or underflow for any finite entries
             if abs(norm - 1.0) > 1e-6:
                 raise SceneError(src, f"{fld}.quaternion",
                                  f"expected a unit quaternion [x, y, z, w], got norm {norm:.6g}")
             out["quaternion"] = quat
         return out
-    raise SceneError(src, fld, f"expected a number, a list of numbers or a table, got {x!r}")
+    raise SceneError(src, fld, "expected a number, a list of numbers or a table, got "
+                               f"{_show(x)}")
 
 
 def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     table = _table(src, "operating_point", x)
     _check_keys(src, "operating_point", table, _OP_KEYS)
     q = {j: _parse_joint_position(src, f"operating_point.q.{j}", v)
-         for j, v in _table(src, "operating_point.q", table.get("q", {})).items()}
+         for j, v in _joint_table(src, "operating_point.q", table.get("q", {})).items()}
     independent = _names(src, "operating_point.independent", table.get("independent", []))
     solve = _string(src, "operating_point.solve", table.get("solve", "inputs"), _SOLVE_MODES)
     u: dict[str, float | tuple[float, ...]] = {}
-    for joint, value in _table(src, "operating_point.u", table.get("u", {})).items():
+    for joint, value in _joint_table(src, "operating_point.u", table.get("u", {})).items():
         f = f"operating_point.u.{joint}"
-        u[joint] = (_numbers(src, f, value, unit=" [N*m or N]") if isinstance(value, list)
-                    else _number(src, f, value, unit=" [N*m or N]"))
+        u[joint] = (_numbers(src, f, value, unit=" [N*m or N]", limit=COEFFICIENT_LIMIT)
+                    if _is_sequence(value)
+                    else _number(src, f, value, unit=" [N*m or N]", limit=COEFFICIENT_LIMIT))
     if u and solve != "positions":
         raise SceneError(src, "operating_point.u", "inputs are given only with "
                                                    "solve = \"positions\" (with \"inputs\" "
@@ -493,7 +721,7 @@ def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     allow = table.get("allow_non_equilibrium", False)
     if not isinstance(allow, bool):
         raise SceneError(src, "operating_point.allow_non_equilibrium",
-                         f"expected true or false, got {allow!r}")
+                         f"expected true or false, got {_show(allow)}")
     return OperatingPointSpec(q, independent, solve, u, allow)
 
 
@@ -509,7 +737,13 @@ def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:
         urdf = Path(_string(src, "urdf", data["urdf"]))
         if not urdf.is_absolute():
             urdf = (src.parent if src is not None else Path.cwd()) / urdf
-        urdf = urdf.resolve()
+        try:
+            urdf = urdf.resolve()
+            urdf.is_file()  # raises for paths the file system cannot take (name too long)
+        except (OSError, RuntimeError, ValueError) as exc:
+            reason = getattr(exc, "strerror", None) or _show(str(exc))
+            raise SceneError(src, "urdf", f"cannot use the path {_show(str(urdf))}: {reason}") \
+                from None
     else:
         robot = _string(src, "robot", data["robot"])
     default_name = src.stem if src is not None else (robot or (urdf.stem if urdf else "scene"))
@@ -524,7 +758,10 @@ def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:
         tin = _table(src, "inputs", data["inputs"])
         _check_keys(src, "inputs", tin, ("actuated",))
         act = tin.get("actuated", "all")
-        inputs = "all" if act == "all" else _names(src, "inputs.actuated", act)
+        if isinstance(act, str):
+            inputs = _string(src, "inputs.actuated", act, ("all",))
+        else:
+            inputs = _names(src, "inputs.actuated", act)
     outputs = None
     if "outputs" in data:
         tout = _table(src, "outputs", data["outputs"])

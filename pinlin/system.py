@@ -25,7 +25,7 @@ import pinocchio as pin
 from .arrays import complement, read_only
 from .exceptions import ModelError, SceneError, UnknownNameError
 from .robots import load_robot
-from .scene import Scene
+from .scene import COEFFICIENT_LIMIT, Scene, _clean, _show
 from .urdf_io import load_urdf
 
 FREE_FLYER = "JointModelFreeFlyer"
@@ -114,6 +114,7 @@ class System:
                 model.names[jid], jid, j.shortname(), j.idx_q, j.nq, j.idx_v, j.nv
             )
         self.coordinate_names = [n for j in self.joints.values() for n in j.coordinate_names()]
+        self._check_model_names()
         self.base_joint = next((n for n, j in self.joints.items() if j.kind == FREE_FLYER and
                                 model.parents[j.id] == 0), None)
         src = scene.source
@@ -123,6 +124,8 @@ class System:
         self.damping = np.zeros(model.nv)
         if eff.damping is True:
             self.damping = np.array(model.damping, dtype=float).copy()
+            self._check_model_coefficients(self.damping, "effects.damping", "URDF <dynamics "
+                                           "damping>", "N*m*s/rad or N*s/m")
         elif eff.damping:
             self.damping = self._joint_vector(eff.damping, "effects.damping")
         self.stiffness = np.zeros(model.nv)
@@ -134,6 +137,7 @@ class System:
                 raise SceneError(src, fld, f"springs act on 1-DoF joints; '{name}' has {j.nv}")
             self.stiffness[j.idx_v] = spring.stiffness
             self.q_rest[j.idx_q:j.idx_q + j.nq] = one_dof_configuration(j, spring.rest)
+        self._check_configuration_spec()
         self.has_damping = bool(np.any(self.damping))
         self.has_springs = bool(np.any(self.stiffness))
         self.actuated = self._inputs(scene.inputs)
@@ -146,7 +150,7 @@ class System:
         self.input_matrix = read_only(selection)
         self.unactuated = complement(model.nv, self.actuated)
         self.actuated_columns = _as_slice(self.actuated)
-        self.data = model.createData()
+        self.data = pin.Data(model)  # createData() would hold a second copy while returning
         self.rotation = eff.rotation
         self._build_kinematic_model()
         self.outputs = self._outputs()
@@ -160,14 +164,26 @@ class System:
         Raises:
             UrdfError, UnknownRobotError, RobotLoadError: the robot cannot be loaded.
             SceneError: a field names a joint or frame the robot lacks, or a bad size.
+            ResourceError: the model would need more memory than
+                :func:`pinlin.resources.memory_limit` allows (checked from the URDF's sizes
+                before Pinocchio parses it, and again on the model before any ``Data``).
         """
+        from .resources import check_system_memory
+
+        rotating = scene.effects.rotation is not None
+        what = str(scene.urdf) if scene.robot is None else f"robot '{scene.robot}'"
+
+        def check(nv: int, njoints: int) -> None:
+            check_system_memory(nv, njoints, rotating=rotating, what=what)
+
         if scene.robot is not None:
             model, q_ref = _robot_model(scene)
         else:
             assert scene.urdf is not None
-            model = load_urdf(scene.urdf, free_flyer=scene.base == "free")
+            model = load_urdf(scene.urdf, free_flyer=scene.base == "free", check=check)
             q_ref = pin.neutral(model)
             model.armature = np.zeros(model.nv)
+        check(model.nv, model.njoints)
         return cls(scene, model, q_ref)
 
     # ----------------------------------------------------------------------------------------
@@ -180,7 +196,11 @@ class System:
         return self.model.nv
 
     def joint(self, name: str, field: str | None = None) -> JointInfo:
-        """Joint ``name`` or an :class:`UnknownNameError` naming ``field``."""
+        """Joint ``name`` or an :class:`UnknownNameError` naming ``field`` (a
+        :class:`SceneError` when ``name`` is not a string at all)."""
+        if not isinstance(name, str):
+            raise SceneError(self.scene.source, field,
+                             f"expected a joint name (a string), got {type(name).__name__}")
         try:
             return self.joints[name]
         except KeyError:
@@ -190,10 +210,14 @@ class System:
     def frame_id(self, name: str, field: str | None = None) -> int:
         """Index of frame ``name`` in :attr:`kin_model`, or an :class:`UnknownNameError`
         naming ``field``."""
-        if name.startswith("__spin") or not self.kin_model.existFrame(name):
-            known = [f.name for f in self.model.frames][1:]
-            raise UnknownNameError(self.scene.source, field, name, "frame", known)
-        return self.kin_model.getFrameId(name)
+        if not name.startswith("__spin"):
+            # A link and a joint may share a name (anymal_c, z1, so100): the link's frame wins.
+            for kind in (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
+                         pin.FrameType.JOINT):
+                if self.kin_model.existFrame(name, kind):
+                    return self.kin_model.getFrameId(name, kind)
+        known = [f.name for f in self.model.frames][1:]
+        raise UnknownNameError(self.scene.source, field, name, "frame", known)
 
     @property
     def urdf_path(self) -> Path:
@@ -230,7 +254,7 @@ class System:
         kin = pin.appendModel(spin, self.model, fid, pin.SE3.Identity())
         kin.armature = np.concatenate([[0.0], self.model.armature])
         kin.gravity = self.model.gravity
-        self.kin_model, self.kin_data = kin, kin.createData()
+        self.kin_model, self.kin_data = kin, pin.Data(kin)
         self.kin_columns = slice(1, None)
 
     def kin_q(self, q: np.ndarray) -> np.ndarray:
@@ -359,10 +383,79 @@ class System:
                 raise SceneError(self.scene.source, "effects.armature",
                                  "true takes the rotor inertias from the robot's SRDF, and this "
                                  "robot has none; give a table {joint = value} [kg*m^2]")
+            self._check_model_coefficients(np.asarray(model.armature, dtype=float),
+                                           "effects.armature", "SRDF rotor parameters",
+                                           "kg*m^2 or kg")
         elif armature:
             model.armature = self._joint_vector(armature, "effects.armature")
         else:
             model.armature = np.zeros(model.nv)
+
+    def _check_model_coefficients(self, values: np.ndarray, fld: str, origin: str,
+                                  unit: str) -> None:
+        """Per-coordinate coefficients the robot's files give (``effects.* = true``) obey the
+        same rule as a scene's: finite, >= 0 and <= COEFFICIENT_LIMIT [``unit``]."""
+        ok = np.isfinite(values) & (values >= 0.0) & (values <= COEFFICIENT_LIMIT)
+        if not np.all(ok):
+            k = int(np.argmin(ok))
+            raise SceneError(self.scene.source, fld,
+                             f"true takes the values of the {origin}, which give coordinate "
+                             f"'{self.coordinate_names[k]}' {values[k]:.6g}; expected a finite "
+                             f"number in [0, {COEFFICIENT_LIMIT:g}] [{unit}] (give a table "
+                             "{joint = value} instead)")
+
+    def _check_model_names(self) -> None:
+        """Joint and frame names must be printable on one line (they appear in messages and
+        signal names), must not take the names of the steady rotation's extra joint and frame
+        (``__spin__``, ``__spin_body__``), and the coordinate names must be distinct (a 1-DoF
+        joint 'p[0]' beside a multi-DoF joint 'p' would give two coordinates the same name)."""
+        where = "urdf" if self.scene.urdf is not None else "robot"
+        for kind, names in (("joint", self.joints), ("frame", [f.name for f in self.model.frames])):
+            for name in names:
+                if not name or not _clean(name):
+                    raise SceneError(self.scene.source, where,
+                                     f"the robot has a {kind} named {_show(name)}; pinlin needs "
+                                     f"{kind} names without control characters or line breaks")
+                if name.startswith("__spin") and self.scene.effects.rotation is not None:
+                    raise SceneError(self.scene.source, where,
+                                     f"the robot has a {kind} named '{name}'; names starting "
+                                     "with '__spin' are reserved for the steady rotation "
+                                     "(effects.rotation)")
+        seen: set[str] = set()
+        for name in self.coordinate_names:
+            if name in seen:
+                raise SceneError(self.scene.source, where,
+                                 f"two joints give the coordinate name '{name}' (a 1-DoF joint "
+                                 "named like a coordinate of a multi-DoF joint); rename one")
+            seen.add(name)
+
+    def _check_configuration_spec(self) -> None:
+        """Raw configuration lists in ``operating_point.q`` must already be normalized where the
+        joint's configuration has a unit-norm part: a continuous joint's (cos, sin), a planar
+        joint's (cos, sin) (entries 3-4), a spherical joint's quaternion and a free flyer's
+        (entries 4-7). pinlin does not normalize them: (2, 0) is a typo, not an angle.
+
+        Raises:
+            SceneError: a list of the wrong length or not normalized, naming the joint.
+        """
+        src = self.scene.source
+        for name, value in self.scene.operating_point.q.items():
+            fld = f"operating_point.q.{name}"
+            j = self.joint(name, fld)
+            if not isinstance(value, tuple):
+                continue
+            if len(value) != j.nq:
+                raise SceneError(src, fld, f"joint '{name}' ({j.kind}) has {j.nq} configuration "
+                                           f"values, got {len(value)}")
+            q = pin.neutral(self.model)
+            q[j.idx_q:j.idx_q + j.nq] = value
+            if pin.isNormalized(self.model, q, 1e-6):
+                continue
+            part, unit, instead = _unit_part(j)
+            norm = float(np.linalg.norm(np.asarray(value)[unit])) if unit is not None else np.nan
+            raise SceneError(src, fld, f"joint '{name}' ({j.kind}): {part} must have unit norm, "
+                                       f"got norm {norm:.6g}; pinlin does not normalize a "
+                                       f"configuration (give {instead})")
 
     def _inputs(self, inputs) -> np.ndarray:
         if inputs == "all":
@@ -375,24 +468,52 @@ class System:
             idx.extend(range(j.idx_v, j.idx_v + j.nv))
         return np.array(idx, dtype=int)
 
+    def _output_entry(self, entry: str) -> tuple[tuple[str, ...], JointInfo]:
+        """Parts (``q``, ``v``) and joint of one ``outputs.joints`` entry.
+
+        An entry is a joint name (position and velocity) or ``q:`` / ``v:`` followed by a joint
+        name. Joint names may contain ':' (``q:arm:elbow`` is the position of joint
+        ``arm:elbow``); an entry that reads both ways (joints ``q:x`` and ``x`` both exist) is
+        refused as ambiguous.
+        """
+        src = self.scene.source
+        prefix, sep, rest = entry.partition(":")
+        as_part = bool(sep) and prefix in ("q", "v") and rest in self.joints
+        if entry in self.joints:
+            if as_part:
+                what = "position" if prefix == "q" else "velocity"
+                raise SceneError(src, "outputs.joints",
+                                 f"'{entry}' is ambiguous: it is a joint of the robot and the "
+                                 f"{what} of joint '{rest}'; rename one of the joints")
+            return ("q", "v"), self.joints[entry]
+        if sep and prefix in ("q", "v"):
+            return (prefix,), self.joint(rest, "outputs.joints")
+        if sep:
+            raise SceneError(src, "outputs.joints",
+                             f"'{entry}': expected 'name', 'q:name' or 'v:name' (no joint is "
+                             f"named '{entry}')")
+        return ("q", "v"), self.joint(entry, "outputs.joints")
+
     def _outputs(self) -> OutputMap | None:
         spec = self.scene.outputs
         if spec is None:
             return None
         rows: list[tuple[int, int]] = []
         names: list[str] = []
+        origin: dict[str, str] = {}
         for entry in spec.joints:
-            prefix, _, jname = entry.rpartition(":")
-            if prefix not in ("", "q", "v"):
-                raise SceneError(self.scene.source, "outputs.joints",
-                                 f"'{entry}': expected 'name', 'q:name' or 'v:name'")
-            j = self.joint(jname, "outputs.joints")
-            parts = ("q", "v") if prefix == "" else (prefix,)
+            parts, j = self._output_entry(entry)
             for part in parts:
                 offset = 0 if part == "q" else self.nv
                 for k, cname in enumerate(j.coordinate_names()):
+                    name = f"{part}:{cname}"
+                    if name in origin:
+                        raise SceneError(self.scene.source, "outputs.joints",
+                                         f"output '{name}' is requested twice (by '{origin[name]}' "
+                                         f"and '{entry}'); list it once")
+                    origin[name] = entry
                     rows.append((len(names), offset + j.idx_v + k))
-                    names.append(f"{part}:{cname}")
+                    names.append(name)
         frames: list[tuple[int, int]] = []
         for fname in spec.frames:
             fid = self.frame_id(fname, "outputs.frames")
@@ -410,6 +531,23 @@ class System:
                 raise SceneError(self.scene.source, "effects.mimic",
                                  f"the URDF {self.urdf_path} has no <mimic> joints")
         return ConstraintSet(self, mimics)
+
+
+def _unit_part(j: JointInfo) -> tuple[str, slice | None, str]:
+    """Description, slice (within the joint's values) of its unit-norm configuration part, and
+    how to give the joint's position instead."""
+    if j.kind == FREE_FLYER:
+        return ("the quaternion [qx, qy, qz, qw] (entries 4-7)", slice(3, 7),
+                "a table {position = [x, y, z], rpy = [r, p, y]} or a unit quaternion")
+    if j.kind == SPHERICAL:
+        return ("the quaternion [qx, qy, qz, qw]", slice(0, 4),
+                "a table {rpy = [r, p, y]} or a unit quaternion")
+    if j.kind == "JointModelPlanar":
+        return ("the (cos, sin) pair (entries 3-4)", slice(2, 4),
+                "[x, y, cos(theta), sin(theta)]")
+    if j.continuous:
+        return "the (cos, sin) pair", slice(0, 2), "the angle [rad] as a number"
+    return "its unit-norm part", None, "normalized values"
 
 
 def one_dof_configuration(j: JointInfo, value: float) -> np.ndarray:

@@ -23,6 +23,7 @@ BAD_CALLS = {  # name: (target, keyword arguments, argument named, words in the 
     "q_strings": (PENDULUM, {"q": ["a"]}, "q", "expected 1 numbers"),
     "q_nested_junk": (PENDULUM, {"q": [[1.0], "x"]}, "q", "expected 1 numbers"),
     "q_object": (PENDULUM, {"q": object()}, "q", "expected 1 numbers"),
+    "q_huge_int": (PENDULUM, {"q": [10**400]}, "q", "expected 1 numbers"),
     "allow_string": (PENDULUM, {"allow_non_equilibrium": "no"}, "allow_non_equilibrium",
                      "expected True or False"),
     "allow_int": (PENDULUM, {"allow_non_equilibrium": 0}, "allow_non_equilibrium",
@@ -128,6 +129,13 @@ def test_operating_point_resolves_like_linearize():
     lhs = s.input_matrix @ op.u + s.constraints.jacobian(op.q).T @ op.lam
     rhs = s.static_force(op.q) - s.spring_torque(op.q)
     np.testing.assert_allclose(lhs, rhs, atol=1e-12)
+
+
+def test_configuration_override_out_of_range_is_refused():
+    with pytest.raises(pinlin.ShapeError, match="limited to"):
+        pinlin.linearize(PENDULUM, q=np.array([1e300]))
+    with pytest.raises(pinlin.ShapeError, match="NaN or inf"):
+        pinlin.linearize(PENDULUM, q=np.array([np.inf]))
 
 
 def test_operating_point_accepts_names_and_refuses_junk():
