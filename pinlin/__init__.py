@@ -8,6 +8,7 @@ Typical use::
     print(pinlin.modal(model))               # eigenvalues, wn, zeta, mode shapes
 """
 
+from . import graph
 from .conditioning import AccuracyWarning
 from .exceptions import (
     ArgumentError,
@@ -28,6 +29,7 @@ from .linear_model import LinearModel
 from .linearization import linearize, operating_point
 from .modal import ModalAnalysis, modal
 from .operating_point import OperatingPoint
+from .resources import set_memory_limit
 from .scene import Effects, Scene, Spring
 from .system import System
 
@@ -58,5 +60,7 @@ __all__ = [
     "__version__",
     "linearize",
     "modal",
+    "graph",
     "operating_point",
+    "set_memory_limit",
 ]

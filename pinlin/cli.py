@@ -10,12 +10,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .exceptions import ModelFileError, PinlinError
+from .exceptions import ArgumentError, ModelFileError, PinlinError
 
 EXIT_BAD_INPUT = 2
 
@@ -24,7 +24,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (argparse prints the usage first by default)."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        raise _UsageError(f"{self.prog}: {message} (see '{self.prog} --help')")
+        message = " ".join(message.split())
+        raise _UsageError(f"pinlin: error: {message} (see '{self.prog} --help')")
 
 
 class _UsageError(Exception):
@@ -32,15 +33,35 @@ class _UsageError(Exception):
 
 
 def _check_out(path: Path) -> None:
-    """Refuse an --out path before any work, so that a failure writes nothing."""
+    """Refuse an --out path before any work, so that a failure writes nothing: unknown
+    format, a folder, a folder that does not exist or is a file, no permission."""
+    from .files import check_file_target
+
     if path.suffix not in (".npz", ".mat", ".json"):
         raise ModelFileError(path, f"unknown model format '{path.suffix}'; expected .npz, .mat "
                                    "or .json")
+    check_file_target(path)
     parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise ModelFileError(path, f"cannot write: folder '{parent}' does not exist")
     if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise ModelFileError(path, "cannot write: permission denied")
+
+
+def _file_name(option: str) -> Callable[[str], str]:
+    """argparse ``type`` for an output option: an empty value is refused at once (it would
+    otherwise be taken as "no file" and silently save nothing)."""
+
+    def check(text: str) -> str:
+        if not text.strip():
+            raise ArgumentError(option, "needs a file name, got an empty string")
+        return text
+
+    return check
+
+
+def _folder_name(value: str, option: str) -> str:
+    if not value.strip():
+        raise ArgumentError(option, "needs a folder name, got an empty string")
+    return value
 
 
 def _fmt(values: np.ndarray) -> str:
@@ -135,6 +156,7 @@ def _cmd_robots(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     from .bench import MECHANISMS, ROBOTS, run
 
+    _folder_name(args.out_dir, "--out-dir")
     systems = args.systems or list(ROBOTS + MECHANISMS)
     command = "pinlin bench" + "".join(f" {s}" for s in args.systems)
     if args.repeats != 5:
@@ -147,12 +169,19 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     from .validate import run, targets
 
     if not args.all and not args.targets:
-        raise _UsageError("pinlin validate: name scenes or robots, or give --all "
-                          "(see 'pinlin validate --help')")
+        raise ArgumentError("SCENE_OR_ROBOT", "name scenes or robots, or give --all (see "
+                                              "'pinlin validate --help')")
+    if args.all and args.targets:
+        raise ArgumentError("--all", "validates every bundled scene and robot; name systems "
+                                     "or give --all, not both")
+    _folder_name(args.out_dir, "--out-dir")
     names = targets(args.all, list(args.targets))
     command = "pinlin validate" + (" --all" if args.all else "") + "".join(
         f" {t}" for t in args.targets)
-    results = run(names, args.out_dir, not args.no_progress, command)
+    # Named systems must all exist (else exit 2, nothing written) and merge into the index;
+    # --all rebuilds the index and reports a system pinlin cannot build as a row.
+    results = run(names, args.out_dir, not args.no_progress, command, strict=not args.all,
+                  merge=not args.all)
     for r in results:
         print(f"{r.name:28s} {r.status:15s} {r.reason}")
     failed = [r.name for r in results if r.failed]
@@ -162,23 +191,28 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_export_mjcf(args: argparse.Namespace) -> int:
-    from .mjcf import build
+    from .files import check_file_target, write_text_atomic
+    from .mjcf import MujocoError, build, check_time_step
     from .scene import Scene
 
+    dt = check_time_step(args.dt, "--dt")
     out = Path(args.output)
     if out.suffix != ".xml":
         raise ModelFileError(out, "expected an .xml file for MJCF")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise ModelFileError(out, f"cannot write: folder '{parent}' does not exist")
+    check_file_target(out)
     scene = Scene.resolve(args.target)
-    ms = build(scene.system, dt=args.dt)
+    inputs = {Path(p).resolve() for p in (scene.source, scene.system.urdf_path) if p}
+    if out.resolve() in inputs:
+        raise ModelFileError(out, "is an input of the scene (its scene file or URDF); choose "
+                                  "another output name")
+    ms = build(scene.system, dt=dt)
     try:
-        out.write_text(ms.spec.to_xml())
-    except OSError as exc:
-        raise ModelFileError(out, f"cannot write: {exc.strerror or exc}") from None
+        xml = ms.spec.to_xml()
+    except Exception as exc:  # noqa: BLE001  MuJoCo raises ValueError or RuntimeError
+        raise MujocoError(f"MuJoCo cannot write MJCF for '{scene.name}': {exc}") from None
+    write_text_atomic(out, xml)
     print(f"MJCF of '{scene.name}' written to {out} (nq = {ms.model.nq}, nv = {ms.model.nv}, "
-          f"{ms.model.neq} equalities, dt = {args.dt:g} s)")
+          f"{ms.model.neq} equalities, dt = {dt:g} s)")
     return 0
 
 
@@ -236,13 +270,15 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--allow-non-equilibrium", action="store_true",
                      help="linearize even if the inputs cannot hold q0 at rest")
     lin.add_argument("--matrices", action="store_true", help="print A, B, C, D")
-    lin.add_argument("--out", metavar="FILE", help="save the model (.npz, .mat or .json)")
+    lin.add_argument("--out", metavar="FILE", type=_file_name("--out"),
+                     help="save the model (.npz, .mat or .json)")
     lin.set_defaults(func=_cmd_linearize)
     ben = sub.add_parser("bench", help="measure accuracy against time (analytic, fd3, fd5, "
                                        "MuJoCo) and write validation/reports/accuracy_vs_time.md")
     ben.add_argument("systems", nargs="*", metavar="SYSTEM",
                      help="robots or bundled scenes (default: six robots and two mechanisms)")
-    ben.add_argument("--repeats", type=int, default=5, help="timing repeats per point")
+    ben.add_argument("--repeats", type=int, default=5,
+                     help="timing repeats per point (1 to 1000)")
     ben.add_argument("--out-dir", default="validation/reports",
                      help="folder for accuracy_vs_time.md and its plots")
     ben.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -256,7 +292,8 @@ def build_parser() -> argparse.ArgumentParser:
     val.set_defaults(func=_cmd_validate)
     exp = sub.add_parser("export-mjcf", help="write the scene as MJCF with only its effects")
     exp.add_argument("target", metavar="SCENE_OR_ROBOT")
-    exp.add_argument("-o", "--output", required=True, metavar="FILE.xml")
+    exp.add_argument("-o", "--output", required=True, metavar="FILE.xml",
+                     type=_file_name("--output"))
     exp.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default 1e-3)")
     exp.set_defaults(func=_cmd_export_mjcf)
     gra = sub.add_parser("graph", help="state equations of a linear graph (Rowell)")
@@ -267,6 +304,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="keep A-type elements in series and T-type in parallel (report the "
                           "excess states instead of combining them)")
     gra.set_defaults(func=_cmd_graph)
+    for command in (lin, ben, val, exp):
+        command.add_argument("--memory-limit", metavar="SIZE", default=None,
+                             help="refuse a model whose estimated memory exceeds SIZE: bytes, "
+                                  "or with suffix K, M, G, T (powers of 1024), e.g. 8G "
+                                  "(default: $PINLIN_MEMORY_LIMIT, else half the memory)")
     rob = sub.add_parser("robots", help="list the example-robot-data robots that load")
     rob.set_defaults(func=_cmd_robots)
     return parser
@@ -276,7 +318,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pinlin`` console script; returns the exit status."""
     try:
         args = build_parser().parse_args(argv)
-        return int(args.func(args))
+        limit = getattr(args, "memory_limit", None)
+        if limit is None:
+            return int(args.func(args))
+        from .resources import memory_limit_override
+
+        with memory_limit_override(limit, argument="--memory-limit"):
+            return int(args.func(args))
     except _UsageError as exc:
         print(str(exc), file=sys.stderr)
         return EXIT_BAD_INPUT
