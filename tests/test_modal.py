@@ -84,6 +84,7 @@ def test_symmetric_and_general_paths_agree(name):
     pairs = np.flatnonzero(sym.rigid)[::2]
     J[pairs, pairs + 1] = 1.0                       # Jordan blocks of the rigid modes
     np.testing.assert_allclose(A @ R, R @ J, atol=1e-9 * scale)
+    np.testing.assert_allclose(L.conj().T @ A, J @ L.conj().T, atol=1e-9 * scale)
     np.testing.assert_allclose(L.conj().T @ R, np.eye(len(J)), atol=1e-9)
 
 
@@ -103,6 +104,11 @@ def test_general_left_vectors_are_biorthonormal_and_condition_is_reported():
     modes = pinlin.modal(model)
     assert modes.method == "general"
     L, R = modes.left_vectors, modes.right_vectors
+    lam, A = modes.eigenvalues, model.A
+    scale = np.abs(A).max()
+    # Right and left eigenvectors each (a swap of L and R keeps L^H R = I but fails these).
+    np.testing.assert_allclose(A @ R, R * lam, atol=1e-10 * scale)
+    np.testing.assert_allclose(L.conj().T @ A, lam[:, None] * L.conj().T, atol=1e-10 * scale)
     np.testing.assert_allclose(L.conj().T @ R, np.eye(R.shape[0]), atol=1e-8)
     assert np.all(modes.condition >= 1.0 - 1e-9) and np.all(np.isfinite(modes.condition))
     assert modes.is_stable
