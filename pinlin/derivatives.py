@@ -296,12 +296,18 @@ def propagated_noise(X: np.ndarray, sigma: np.ndarray, Y: np.ndarray | None = No
     return x if Y is None else x * float(np.sqrt((Y * Y).sum(axis=0).max(initial=0.0)))
 
 
-def error_estimate(A: np.ndarray, A_alt: np.ndarray, noise: float) -> float:
+def error_estimate(A: np.ndarray, A_alt: np.ndarray, noise: float) -> dict[str, float]:
     """Relative error estimate of a numerically derived A, max |error| / max |A|:
     :data:`TRUNCATION_SAFETY` times the truncation error, from the companion formula pushed
     through the same formulation (``A_alt``), plus :data:`NOISE_SIGMAS` times ``noise``, the
     standard deviation [units of A] of the rounding noise of K and C pushed through the
-    formulation (see :func:`propagated_noise`), plus the formulation's own rounding."""
+    formulation (see :func:`propagated_noise`), plus the formulation's own rounding.
+
+    Returns:
+        ``{"error_estimate": total, "error_estimate_rounding": the rounding part}`` (the keys
+        of ``model.info``).
+    """
     scale = max(float(np.abs(A).max(initial=0.0)), np.finfo(float).tiny)
-    truncation = TRUNCATION_SAFETY * float(np.abs(A_alt - A).max(initial=0.0))
-    return (truncation + NOISE_SIGMAS * noise) / scale + FORMULATION_ROUNDING
+    truncation = TRUNCATION_SAFETY * float(np.abs(A_alt - A).max(initial=0.0)) / scale
+    rounding = NOISE_SIGMAS * noise / scale + FORMULATION_ROUNDING
+    return {"error_estimate": truncation + rounding, "error_estimate_rounding": rounding}

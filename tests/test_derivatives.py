@@ -46,7 +46,10 @@ def test_error_estimate_tracks_the_true_error(ur5, backend, h):
     true, model = _error(scene, ref, backend, h)
     est = model.info["error_estimate"]
     assert true <= est, (est, true)
-    assert est <= 30 * true + 1e-9, (est, true)
+    # Tight where truncation dominates (1.5x by construction); where rounding dominates, the
+    # true error is noise and can be arbitrarily small, so only the measured-noise part of the
+    # estimate is allowed beyond 30x.
+    assert est <= 30 * true + model.info["error_estimate_rounding"], (est, true)
 
 
 BOUND_CASES = [("four_bar", "independent"), ("four_bar", "penalty"), ("four_bar", "canonical"),
@@ -121,7 +124,10 @@ def test_steps_per_variable():
 @pytest.mark.parametrize("robot, base", [("ur5", None), ("solo12", [0.3, -0.4, 0.8])])
 def test_mujoco_transition_matrix_agrees_with_analytic(robot, base):
     """MuJoCo's centered transition derivatives, recovered as a continuous A in pinlin's
-    coordinates (free-joint frames converted; rotated base), match the analytic model."""
+    coordinates (free-joint frames converted; rotated base), match the analytic model.
+    Centered differences at eps and 2 eps combined by Richardson (as pinlin validate does):
+    O(eps^4) truncation plus rounding ~eps_mach |a| kappa(M) / eps ~ 1e-12..1e-10 at
+    eps = 3e-4 (measured 7e-11 on ur5, 7e-12 on solo12); tolerance 1e-8."""
     over = {}
     if base is not None:
         over = {"operating_point": {"allow_non_equilibrium": True,
@@ -129,8 +135,11 @@ def test_mujoco_transition_matrix_agrees_with_analytic(robot, base):
     scene = pinlin.Scene.from_robot(robot, **over)
     model = pinlin.linearize(scene)
     ms = mjcf.build(scene.system)
-    A = mjcf.continuous_state_matrix(ms, scene.system, model.operating_point, eps=1e-6)
-    assert np.abs(A - model.A).max() <= 1e-7 * np.abs(model.A).max()
+    op = model.operating_point
+    A_1 = mjcf.continuous_state_matrix(ms, scene.system, op, eps=3e-4)
+    A_2 = mjcf.continuous_state_matrix(ms, scene.system, op, eps=6e-4)
+    A = (4.0 * A_1 - A_2) / 3.0
+    assert np.abs(A - model.A).max() <= 1e-8 * np.abs(model.A).max()
 
 
 def test_bench_writes_report_and_plots(tmp_path, capsys):

@@ -157,7 +157,7 @@ def _numeric_info(terms, A: np.ndarray, A_alt: np.ndarray | None,
     if terms.steps is not None:
         out["step"] = dict(terms.steps)
     if A_alt is not None:
-        out["error_estimate"] = error_estimate(A, A_alt, rounding)
+        out.update(error_estimate(A, A_alt, rounding))
     return out
 
 

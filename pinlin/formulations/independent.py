@@ -99,7 +99,7 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         # A's lower block row is -M^-1 [K, C]: rounding in K and C is amplified by M^-1.
         sigma_K, sigma_C = terms.rounding
         rounding = max(propagated_noise(Minv, sigma_K), propagated_noise(Minv, sigma_C))
-        info["error_estimate"] = error_estimate(A, A_alt, rounding)
+        info.update(error_estimate(A, A_alt, rounding))
     return LinearModel.assembled(
         A=read_only(A), B=read_only(B), C=read_only(C), D=read_only(D),
         state_names=system.state_names, input_names=system.input_names, output_names=out_names,

@@ -113,7 +113,10 @@ def test_four_bar_near_toggle(delta):
     Phi_d is near singular, R ill-conditioned. pinlin warns with the condition estimate when it
     exceeds 1e6, and the physical eigenvalue still equals the one from the well-conditioned
     parametrization (crank independent, same configuration) within a bound that grows with
-    that condition number. Near the fold the condition grows like 1 / sqrt(delta)."""
+    that condition number. Near the fold the condition grows like 1 / sqrt(delta), until the
+    assembly's tolerance stops it: from delta ~ 1e-12 it floors at 1.8e6-2e6 (where Newton
+    stops, ~4e-12 from the fold), which is why delta = 1e-12 exercises the warned branch
+    (the warning and the assertion read the same number, so the switch cannot flip)."""
     psi = _rocker_extreme() + delta
     base = pinlin.Scene.load(URDF_DIR / "four_bar.toml")
     data = {"urdf": str(base.urdf), "effects": {"gravity": [0, 0, -9.81],
@@ -171,14 +174,17 @@ def _non_grashof_four_bar(tmp_path) -> tuple[dict, float, float, float]:
 def test_crank_driven_to_its_limit_is_warned(tmp_path):
     """A non-Grashof four-bar whose crank is driven exactly to its limit: there the mechanism
     locks (the frequency grows like distance^-1/4 and is infinite at the limit), so any finite
-    model is an artefact of where the assembly stopped. The Jacobian's condition stays below
-    1e6 (measured 9e5), so only the measured sensitivity of A to configurations the assembly
-    cannot tell apart warns (measured 1.4e-5 relative, warned above 1e-6). A micro-radian
-    away the same measure is 3e-8 (condition 1.8e3) and nothing is warned."""
+    model is an artefact of where the assembly stopped. The geometry fixes both measures at a
+    distance d from the limit: condition ~1.76 d^-1/2, sensitivity ~2.8e-11 d^-1/2. At
+    d = 5e-11 the condition (2.3e5) stays 4x below the fixed 1e6 threshold while the
+    sensitivity of A to configurations the assembly cannot tell apart (3.7e-6) is 3.7x above
+    its 1e-6 warning: only the sensitivity warns. At d = 1e-7 (condition 5.6e3, measured
+    because above 1e3) the sensitivity is 8.9e-8, 11x below, and nothing is warned. At the
+    limit itself the model is finite and warned."""
     data, limit, coupler, rocker = _non_grashof_four_bar(tmp_path)
     guess = {"coupler": coupler, "rocker": rocker}
     results = {}
-    for distance in (1e-2, 1e-4, 1e-6, 1e-9, 0.0):  # continuation towards the limit
+    for distance in (1e-2, 1e-4, 1e-6, 1e-7, 1e-9, 5e-11, 0.0):  # continuation to the limit
         point = {"q": {"crank": limit - distance, **guess}, "independent": ["crank"]}
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -186,13 +192,16 @@ def test_crank_driven_to_its_limit_is_warned(tmp_path):
         guess = {"coupler": model.operating_point.q[1], "rocker": model.operating_point.q[2]}
         results[distance] = (model, [w for w in caught
                                      if issubclass(w.category, pinlin.AccuracyWarning)])
-    near, near_warnings = results[1e-6]
+    near, near_warnings = results[1e-7]
     assert not near_warnings
     assert near.info["condition"]["operating_point_sensitivity"] < 1e-6
+    close, close_warnings = results[5e-11]
+    assert close.info["condition"]["constraint_jacobian"] < 1e6
+    assert close.info["condition"]["operating_point_sensitivity"] > 1e-6
+    assert [str(w.message) for w in close_warnings if "singular position" in str(w.message)]
+    assert not [w for w in close_warnings if "condition number" in str(w.message)]
     at, at_warnings = results[0.0]
-    assert at.info["condition"]["constraint_jacobian"] < 1e6
-    assert at.info["condition"]["operating_point_sensitivity"] > 1e-6
-    assert any("singular position" in str(w.message) for w in at_warnings)
+    assert at_warnings
     _finite(at)
 
 
