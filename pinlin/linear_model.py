@@ -17,11 +17,7 @@ and output has a name. Models are saved and loaded as ``.npz``, MATLAB ``.mat`` 
 from __future__ import annotations
 
 import functools
-import io
-import json
 import math
-import zipfile
-import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,16 +25,13 @@ from typing import Any
 
 import numpy as np
 
-from .exceptions import ArgumentError, ModelError, ModelFileError, PinlinError, ShapeError
+from .exceptions import ArgumentError, ModelError, PinlinError, ShapeError
 from .files import as_path, check_file_target, write_bytes_atomic
+from .model_files import MATRICES, NAME_FIELDS, jsonable, model_format, read_model, serialize
 from .operating_point import OperatingPoint
 
-_FIRST_ORDER = ("A", "B", "C", "D", "E", "F")
 _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
-_CONSTRAINT = ("G",)
-_ALL_MATRICES = _FIRST_ORDER + _SECOND_ORDER + _CONSTRAINT
-_NAME_FIELDS = ("state_names", "input_names", "output_names")
-_FORMATS = (".npz", ".mat", ".json")
+_jsonable = jsonable  # its name here before pinlin.model_files
 
 
 @functools.lru_cache(maxsize=512)
@@ -119,13 +112,13 @@ def _check_finite(fields: Mapping[str, Any], model: str) -> None:
     """
     total = 0.0
     with np.errstate(over="ignore", invalid="ignore"):  # inf - inf, overflowing sums
-        for key in _ALL_MATRICES:
+        for key in MATRICES:
             arr = fields.get(key)
             if arr is not None:
                 total += _reduce(arr, None)
     if math.isfinite(total):
         return
-    for key in _ALL_MATRICES:
+    for key in MATRICES:
         arr = fields.get(key)
         if arr is None:
             continue
@@ -179,12 +172,12 @@ class LinearModel:
         if not isinstance(self.name, str):
             raise ArgumentError("name", f"expected a str, got {type(self.name).__name__}")
         names = {}
-        for k in _NAME_FIELDS:
+        for k in NAME_FIELDS:
             value = getattr(self, k)
             names[k] = (value if type(value) is tuple and _distinct(value)
                         else _names(k, value, self.name))
             object.__setattr__(self, k, names[k])
-        n, m, p = (len(names[k]) for k in _NAME_FIELDS)
+        n, m, p = (len(names[k]) for k in NAME_FIELDS)
         shapes = {"A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m), "E": (n, m), "F": (p, m)}
         for key, shape in shapes.items():
             value = getattr(self, key)
@@ -229,7 +222,7 @@ class LinearModel:
             ModelError: repeated names, or NaN or inf in a matrix (naming it and the model).
         """
         model = fields["name"]
-        for k in _NAME_FIELDS:
+        for k in NAME_FIELDS:
             names = fields[k]
             if not (type(names) is tuple and _distinct(names)):
                 fields[k] = _names(k, names, model)  # raises naming what is wrong
@@ -294,8 +287,7 @@ class LinearModel:
 
     # ----------------------------------------------------------------------------------------
     def _arrays(self) -> dict[str, np.ndarray]:
-        return {k: getattr(self, k) for k in _FIRST_ORDER + _SECOND_ORDER + _CONSTRAINT
-                if getattr(self, k) is not None}
+        return {k: getattr(self, k) for k in MATRICES if getattr(self, k) is not None}
 
     def save(self, path: str | Path) -> Path:
         """Write the model; the format follows the suffix: ``.npz``, ``.mat`` or ``.json``.
@@ -310,41 +302,15 @@ class LinearModel:
                 be written (folder missing, disk full, file size limit).
         """
         path = as_path(path)
-        fmt = _format(path)
+        fmt = model_format(path)
         check_file_target(path)
         write_bytes_atomic(path, self._serialized(path, fmt))
         return path
 
     def _serialized(self, path: Path, fmt: str) -> bytes:
         """The file's content in format ``fmt`` (in memory: nothing touches the disk yet)."""
-        names = {k: list(getattr(self, k)) for k in _NAME_FIELDS}
-        try:
-            meta = _jsonable({"name": self.name, "info": self.info,
-                              "operating_point": (self.operating_point.as_dict()
-                                                  if self.operating_point is not None
-                                                  else None)})
-            meta_text = json.dumps(meta)
-            if fmt == ".json":
-                doc = {**names, **meta, **{k: v.tolist() for k, v in self._arrays().items()}}
-                return json.dumps(doc, indent=1).encode("utf-8")
-        except (TypeError, ValueError, RecursionError) as exc:
-            raise ModelFileError(path, "cannot save: the model's info or operating point is "
-                                       f"not JSON data: {exc}") from None
-        buf = io.BytesIO()
-        if fmt == ".npz":
-            np.savez(buf, **self._arrays(),
-                     **{k: np.array(v, dtype=str).reshape(len(v)) for k, v in names.items()},
-                     meta=np.array(meta_text))
-        else:
-            from scipy.io import savemat
-
-            cells = {}
-            for k, v in names.items():
-                cell = np.empty(len(v), dtype=object)
-                cell[:] = v
-                cells[k] = cell
-            savemat(buf, {**self._arrays(), **cells, "meta": meta_text}, oned_as="column")
-        return buf.getvalue()
+        return serialize(path, fmt, self._arrays(), {k: getattr(self, k) for k in NAME_FIELDS},
+                         self.name, self.info, self.operating_point)
 
     @classmethod
     def load(cls, path: str | Path) -> LinearModel:
@@ -356,258 +322,4 @@ class LinearModel:
                 model pinlin wrote (corrupt archive, wrong shapes or types, NaN or inf,
                 repeated names); the message names the file and what is wrong.
         """
-        path = as_path(path)
-        fmt = _format(path)
-        if path.is_dir():
-            raise ModelFileError(path, "is a folder, expected a model file")
-        if not path.exists():
-            raise ModelFileError(path, "file not found")
-        if not path.is_file():
-            raise ModelFileError(path, "not a regular file")
-        try:
-            raw = path.read_bytes()
-        except OSError as exc:
-            raise ModelFileError(path, f"cannot read: {exc.strerror or exc}") from None
-        try:
-            doc, meta = _READERS[fmt](path, raw)
-            return cls._from_document(path, doc, meta)
-        except ModelFileError:
-            raise
-        except PinlinError as exc:  # the constructor's checks: shapes, names, NaN
-            raise ModelFileError(path, f"inconsistent model: {exc}") from None
-        except MemoryError:
-            raise _bad(path, "too large to load into memory") from None
-
-    @classmethod
-    def _from_document(cls, path: Path, doc: Mapping[str, Any],
-                       meta: Mapping[str, Any]) -> LinearModel:
-        """The model from parsed file content (matrices as arrays or nested lists)."""
-        missing = [k for k in ("A", "B", "C", "D", *_NAME_FIELDS) if k not in doc]
-        if missing:
-            raise _bad(path, f"missing {', '.join(repr(k) for k in missing)} (expected A, B, C, "
-                           "D and the state, input and output names)")
-        names = {k: _read_names(path, k, doc[k]) for k in _NAME_FIELDS}
-        kwargs = {k: _read_matrix(path, k, doc[k]) for k in _ALL_MATRICES if k in doc}
-        if "G" in kwargs and kwargs["G"].ndim == 1 and kwargs["G"].size == 0:
-            kwargs["G"] = kwargs["G"].reshape(0, len(names["state_names"]) // 2)
-        name = meta.get("name", "")
-        if not isinstance(name, str):
-            raise _bad(path, f"field 'name' must be a string, got {type(name).__name__}")
-        info = meta.get("info", {})
-        if info is None:
-            info = {}
-        if not isinstance(info, Mapping):
-            raise _bad(path, f"field 'info' must be a table, got {type(info).__name__}")
-        op = meta.get("operating_point")
-        if op is not None and not isinstance(op, Mapping):
-            raise _bad(path, f"field 'operating_point' must be a table, got {type(op).__name__}")
-        try:
-            point = _op_from_dict(op) if op else None
-        except (KeyError, TypeError, ValueError, OverflowError) as exc:
-            raise _bad(path, f"field 'operating_point' is malformed: {_describe(exc)}") from None
-        return cls(**kwargs, **names, operating_point=point, name=name, info=info)
-
-
-def _bad(path: Path, reason: str) -> ModelFileError:
-    """The error for file content that is not a model pinlin wrote."""
-    return ModelFileError(path, f"not a pinlin model file: {reason}")
-
-
-def _format(path: Path) -> str:
-    if path.suffix not in _FORMATS:
-        found = f"'{path.suffix}'" if path.suffix else "no suffix"
-        raise ModelFileError(path, f"unknown model format ({found}); expected "
-                                   f"{', '.join(_FORMATS[:-1])} or {_FORMATS[-1]}")
-    return path.suffix
-
-
-def _describe(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    if isinstance(exc, KeyError):
-        text = f"missing {text}"
-    return text[:200] or type(exc).__name__
-
-
-def _parse_int(text: str) -> int | float:
-    """JSON integers; one too long for a float becomes inf (refused later as non-finite)
-    rather than an OverflowError or Python's digit-limit ValueError."""
-    return int(text) if len(text) <= 300 else float(text)
-
-
-def _read_json(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise _bad(path, f"not UTF-8 text: {exc}") from None
-    try:
-        doc = json.loads(text, parse_int=_parse_int)
-    except json.JSONDecodeError as exc:
-        raise _bad(path, f"not valid JSON: {exc}") from None
-    except RecursionError:
-        raise _bad(path, "not valid JSON: nested too deeply") from None
-    if not isinstance(doc, dict):
-        raise _bad(path, f"expected a JSON object with A, B, C, D and the names, got "
-                       f"{_json_kind(doc)}")
-    return doc, doc
-
-
-def _json_kind(value: Any) -> str:
-    kinds = {list: "a list", str: "a string", bool: "a boolean", type(None): "null",
-             int: "a number", float: "a number"}
-    return kinds.get(type(value), type(value).__name__)
-
-
-def _read_npz(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
-    if not zipfile.is_zipfile(io.BytesIO(raw)):
-        raise _bad(path, "not an .npz archive (not a zip file: truncated or another format)")
-    try:
-        _check_npy_headers(path, raw)
-        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-            doc = {}
-            for k in z.files:
-                try:
-                    doc[k] = z[k]
-                except ValueError as exc:
-                    raise _bad(path, f"member '{k}': {_describe(exc)}") from None
-    except ModelFileError:
-        raise
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile, RuntimeError,
-            NotImplementedError, KeyError, zlib.error) as exc:
-        raise _bad(path, f"corrupt .npz archive: {_describe(exc)}") from None
-    if "meta" not in doc:
-        raise _bad(path, "missing 'meta' (expected A, B, C, D, the names and meta)")
-    meta = doc.pop("meta")
-    if meta.dtype.kind != "U" or meta.size != 1:
-        raise _bad(path, f"member 'meta' must be one string, got {meta.dtype} of shape "
-                       f"{meta.shape}")
-    return doc, _meta_from_text(path, str(meta.reshape(())))
-
-
-_NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0,
-                (2, 0): np.lib.format.read_array_header_2_0}
-
-
-def _check_npy_headers(path: Path, raw: bytes) -> None:
-    """Read every array's .npy header before numpy allocates anything: refuse object arrays
-    (pickles) and arrays whose header declares more bytes than the member holds (a small
-    hostile file could otherwise make numpy allocate terabytes)."""
-    with zipfile.ZipFile(io.BytesIO(raw)) as zf:
-        for member in zf.infolist():
-            if not member.filename.endswith(".npy"):
-                continue
-            key = member.filename.removesuffix(".npy")
-            with zf.open(member) as fh:
-                version = np.lib.format.read_magic(fh)
-                if version not in _NPY_HEADERS:
-                    raise _bad(path, f"member '{key}': .npy format version {version} is not "
-                                     "one pinlin writes")
-                shape, _, dtype = _NPY_HEADERS[version](fh)
-            if dtype.hasobject:
-                raise _bad(path, f"member '{key}': holds Python objects (a pickle), which "
-                                 "pinlin never loads")
-            needed = math.prod(shape) * dtype.itemsize
-            if needed > member.file_size:
-                raise _bad(path, f"member '{key}': its header declares shape {shape} "
-                                 f"({needed} bytes) but it holds {member.file_size} bytes")
-
-
-def _meta_from_text(path: Path, text: str) -> Mapping[str, Any]:
-    try:
-        meta = json.loads(text, parse_int=_parse_int)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise _bad(path, f"'meta' is not valid JSON: {_describe(exc)}") from None
-    if not isinstance(meta, dict):
-        raise _bad(path, f"'meta' must be a JSON object, got {_json_kind(meta)}")
-    return meta
-
-
-def _read_mat(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
-    from scipy.io import loadmat
-
-    try:
-        mat = loadmat(io.BytesIO(raw), squeeze_me=False)
-    except Exception as exc:  # noqa: BLE001  scipy raises many kinds for a corrupt file
-        raise _bad(path, f"not a MATLAB .mat file pinlin can read: {_describe(exc)}") from None
-    doc: dict[str, Any] = {k: v for k, v in mat.items() if not k.startswith("__")}
-    for k in _NAME_FIELDS:
-        if k in doc:
-            doc[k] = _mat_cell(path, k, doc[k])
-    if "meta" not in doc:
-        raise _bad(path, "missing 'meta' (expected A, B, C, D, the names and meta)")
-    meta = np.asarray(doc.pop("meta"))
-    if meta.dtype.kind != "U" or meta.size != 1:
-        raise _bad(path, "variable 'meta' must be one string")
-    return doc, _meta_from_text(path, str(meta.ravel()[0]))
-
-
-def _mat_cell(path: Path, key: str, cell: Any) -> list[str]:
-    """Names from a MATLAB cell array of strings."""
-    cell = np.asarray(cell)
-    if cell.dtype != object:
-        raise _bad(path, f"variable '{key}' must be a cell array of strings, got {cell.dtype}")
-    out = []
-    for item in cell.ravel():
-        item = np.asarray(item)
-        if item.dtype.kind != "U" or item.size > 1:
-            raise _bad(path, f"variable '{key}' must hold strings, got {item.dtype}")
-        out.append(str(item.ravel()[0]) if item.size else "")
-    return out
-
-
-_READERS = {".json": _read_json, ".npz": _read_npz, ".mat": _read_mat}
-
-
-def _read_names(path: Path, key: str, value: Any) -> list[str]:
-    if isinstance(value, np.ndarray):
-        if value.size == 0:
-            return []
-        if value.dtype.kind != "U" or value.ndim != 1:
-            raise _bad(path, f"'{key}' must be a list of strings, got {value.dtype} of shape "
-                           f"{value.shape}")
-        return [str(s) for s in value]
-    if not isinstance(value, list) or not all(isinstance(s, str) for s in value):
-        raise _bad(path, f"'{key}' must be a list of strings")
-    return value
-
-
-def _read_matrix(path: Path, key: str, value: Any) -> np.ndarray:
-    if isinstance(value, np.ndarray):
-        if value.dtype.kind not in "fiub":
-            raise _bad(path, f"'{key}' must be a real matrix, got dtype {value.dtype}")
-        arr = value.astype(float)
-    else:
-        if not isinstance(value, list):
-            raise _bad(path, f"'{key}' must be a matrix (a list of rows), got "
-                           f"{_json_kind(value)}")
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError, OverflowError) as exc:
-            raise _bad(path, f"'{key}' is not a matrix of numbers: {_describe(exc)}") from None
-    if arr.ndim != 2 and arr.size:
-        raise _bad(path, f"'{key}' must be a 2-D matrix, got shape {arr.shape}")
-    return arr
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, Sequence) and not isinstance(obj, str):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
-
-
-def _op_from_dict(d: Mapping[str, Any]) -> OperatingPoint:
-    def arr(key):
-        return None if d.get(key) is None else np.asarray(d[key], float)
-
-    return OperatingPoint(q=arr("q"), v=arr("v"), u=arr("u"), a=arr("a"),
-                          residual=arr("residual"), equilibrium=bool(d["equilibrium"]),
-                          tolerance=float(d["tolerance"]), y=arr("y"), lam=arr("lam"),
-                          notes=tuple(d.get("notes", ())),
-                          lam_names=tuple(d.get("lam_names", ())))
+        return read_model(path, cls)

@@ -36,7 +36,7 @@ SYMMETRY_RTOL = 1e-8
 #: Largest |entry| of the matrices modal analyses. The eigensolvers and this module square
 #: entries (K + K^T, |lam|^2 = K/M, vector norms, kappa eps max|A|): 1e150^2 = 1e300 stays
 #: below float64's 1.8e308. A physical model in SI units is many decades below (see the
-#: ranges in :mod:`pinlin.scene`); one beyond is refused rather than analysed into inf/NaN.
+#: ranges in :mod:`pinlin.fields`); one beyond is refused rather than analysed into inf/NaN.
 ENTRY_LIMIT = 1e150
 
 

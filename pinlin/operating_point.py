@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from .coordinates import FREE_FLYER, SPHERICAL, JointInfo, one_dof_configuration
 from .exceptions import EquilibriumError, SceneError
-from .system import FREE_FLYER, SPHERICAL, JointInfo, System, one_dof_configuration
+from .system import System
 
 
 @dataclass(frozen=True, eq=False)

@@ -9,7 +9,7 @@ change the model in their own ``__init__`` (e.g. ``talos_legs``, ``human``) are 
 
 urdfdom prints some faults on stderr and goes on with a different robot (a zeroed inertia, a
 dropped visual): every complaint it prints while a robot loads is a :class:`RobotLoadError`.
-(The XML checks of :func:`pinlin.urdf_io.check_urdf` are not applied here: the physical checks
+(The XML checks of :func:`pinlin.urdf_check.check_urdf` are not applied here: the physical checks
 on inertia tensors refuse placeholder links that several example-robot-data robots carry, e.g.
 tiago, pr2, anymal; Pinocchio's merged bodies of those robots are physical.)
 """
@@ -26,7 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import PinlinError, RobotLoadError, UnknownRobotError
-from .urdf_io import complaint_summary, quiet_stderr, urdfdom_complaints
+from .urdf_io import build_model, complaint_summary, quiet_stderr, urdfdom_complaints
 
 
 @dataclass(frozen=True)
@@ -76,17 +76,8 @@ def _build_generic(name: str, loader_cls) -> RobotModel:
     rel = join(loader_cls.path, loader_cls.urdf_subpath, loader_cls.urdf_filename)
     model_path = getModelPath(rel)
     urdf_path = join(model_path, rel)
-    with quiet_stderr() as captured:
-        try:
-            if loader_cls.free_flyer:
-                model = pin.buildModelFromUrdf(urdf_path, pin.JointModelFreeFlyer())
-            else:
-                model = pin.buildModelFromUrdf(urdf_path)
-        except (ValueError, RuntimeError) as exc:
-            failure: Exception | None = exc
-        else:
-            failure = None
-    _raise_on_complaints(name, urdf_path, captured)
+    model, failure, complaints = build_model(urdf_path, free_flyer=loader_cls.free_flyer)
+    _raise_on_complaints(name, urdf_path, complaints)
     if failure is not None:
         raise failure
     srdf_path = None
@@ -103,9 +94,8 @@ def _build_generic(name: str, loader_cls) -> RobotModel:
                       srdf_path)
 
 
-def _raise_on_complaints(name: str, urdf_path: str, captured: list[str]) -> None:
-    """Turn what urdfdom printed while loading robot ``name`` into a :class:`RobotLoadError`."""
-    complaints = urdfdom_complaints(captured[0] if captured else "")
+def _raise_on_complaints(name: str, urdf_path: str, complaints: list[str]) -> None:
+    """Turn urdfdom's complaints while loading robot ``name`` into a :class:`RobotLoadError`."""
     if complaints:
         raise RobotLoadError(name, f"urdfdom reports on {urdf_path}: "
                                    f"{complaint_summary(complaints)}")
@@ -119,7 +109,8 @@ def _build_with_loader(name: str, loader_cls) -> RobotModel:
             failure: Exception | None = exc
         else:
             failure = None
-    _raise_on_complaints(name, loader_cls.urdf_filename or "its model file", captured)
+    _raise_on_complaints(name, loader_cls.urdf_filename or "its model file",
+                         urdfdom_complaints(captured[0] if captured else ""))
     if failure is not None:
         raise failure
     robot = loader.robot

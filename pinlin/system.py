@@ -15,66 +15,30 @@ nv). A floating base is Pinocchio's free-flyer joint ``root_joint``: configurati
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from .arrays import complement, read_only
+from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configuration: re-exported)
+    FREE_FLYER,
+    SPHERICAL,
+    JointInfo,
+    OutputMap,
+    apply_armature,
+    check_configuration_spec,
+    check_model_names,
+    damping_vector,
+    input_indices,
+    one_dof_configuration,
+    output_map,
+    spring_vectors,
+)
 from .exceptions import ModelError, SceneError, UnknownNameError
 from .robots import load_robot
-from .scene import COEFFICIENT_LIMIT, Scene, _clean, _show
+from .scene import Scene
 from .urdf_io import load_urdf
-
-FREE_FLYER = "JointModelFreeFlyer"
-SPHERICAL = "JointModelSpherical"
-
-
-@dataclass(frozen=True)
-class JointInfo:
-    """Where a joint sits in the configuration and velocity vectors.
-
-    Attributes:
-        name: Joint name.
-        id: Pinocchio joint index.
-        kind: Pinocchio short name, e.g. ``JointModelRZ``.
-        idx_q, nq: Slice of the configuration vector.
-        idx_v, nv: Slice of the velocity (tangent) vector.
-    """
-
-    name: str
-    id: int
-    kind: str
-    idx_q: int
-    nq: int
-    idx_v: int
-    nv: int
-
-    @property
-    def continuous(self) -> bool:
-        """A revolute joint without limits stored as (cos, sin): nq = 2, nv = 1."""
-        return self.nq == 2 and self.nv == 1
-
-    def coordinate_names(self) -> list[str]:
-        """Names of the joint's velocity coordinates: ``name`` or ``name[i]``."""
-        return [self.name] if self.nv == 1 else [f"{self.name}[{i}]" for i in range(self.nv)]
-
-
-@dataclass(frozen=True)
-class OutputMap:
-    """How outputs are read from the state.
-
-    Attributes:
-        state_rows: (output row, state column) pairs for joint positions/velocities.
-        frames: (first output row, frame id) for frame positions, 3 rows each.
-        names: Output names.
-    """
-
-    state_rows: tuple[tuple[int, int], ...]
-    frames: tuple[tuple[int, int], ...]
-    names: tuple[str, ...]
 
 
 class System:
@@ -114,33 +78,18 @@ class System:
                 model.names[jid], jid, j.shortname(), j.idx_q, j.nq, j.idx_v, j.nv
             )
         self.coordinate_names = [n for j in self.joints.values() for n in j.coordinate_names()]
-        self._check_model_names()
+        check_model_names(self)
         self.base_joint = next((n for n, j in self.joints.items() if j.kind == FREE_FLYER and
                                 model.parents[j.id] == 0), None)
-        src = scene.source
         eff = scene.effects
         model.gravity.linear = np.array(eff.gravity if eff.gravity is not None else (0, 0, 0.0))
-        self._apply_armature(eff.armature)
-        self.damping = np.zeros(model.nv)
-        if eff.damping is True:
-            self.damping = np.array(model.damping, dtype=float).copy()
-            self._check_model_coefficients(self.damping, "effects.damping", "URDF <dynamics "
-                                           "damping>", "N*m*s/rad or N*s/m")
-        elif eff.damping:
-            self.damping = self._joint_vector(eff.damping, "effects.damping")
-        self.stiffness = np.zeros(model.nv)
-        self.q_rest = pin.neutral(model)
-        for name, spring in (eff.springs or {}).items():
-            fld = f"effects.springs.{name}"
-            j = self.joint(name, fld)
-            if j.nv != 1:
-                raise SceneError(src, fld, f"springs act on 1-DoF joints; '{name}' has {j.nv}")
-            self.stiffness[j.idx_v] = spring.stiffness
-            self.q_rest[j.idx_q:j.idx_q + j.nq] = one_dof_configuration(j, spring.rest)
-        self._check_configuration_spec()
+        apply_armature(self, eff.armature)
+        self.damping = damping_vector(self, eff.damping)
+        self.stiffness, self.q_rest = spring_vectors(self, eff.springs)
+        check_configuration_spec(self)
         self.has_damping = bool(np.any(self.damping))
         self.has_springs = bool(np.any(self.stiffness))
-        self.actuated = self._inputs(scene.inputs)
+        self.actuated = input_indices(self, scene.inputs)
         self.input_names = tuple(f"u:{self.coordinate_names[i]}" for i in self.actuated)
         self.state_names = tuple([f"q:{n}" for n in self.coordinate_names]
                                  + [f"v:{n}" for n in self.coordinate_names])
@@ -153,7 +102,7 @@ class System:
         self.data = pin.Data(model)  # createData() would hold a second copy while returning
         self.rotation = eff.rotation
         self._build_kinematic_model()
-        self.outputs = self._outputs()
+        self.outputs = output_map(self)
         self.constraints = self._constraints()
 
     # ----------------------------------------------------------------------------------------
@@ -362,165 +311,6 @@ class System:
         return -self.stiffness * pin.difference(self.model, self.q_rest, q)
 
     # ----------------------------------------------------------------------------------------
-    def _joint_vector(self, values: Mapping, fld: str) -> np.ndarray:
-        out = np.zeros(self.model.nv)
-        for name, value in values.items():
-            j = self.joint(name, f"{fld}.{name}")
-            if isinstance(value, tuple):
-                if len(value) != j.nv:
-                    raise SceneError(self.scene.source, f"{fld}.{name}",
-                                     f"joint '{name}' has {j.nv} velocity coordinates; expected a "
-                                     f"number or {j.nv} numbers, got {len(value)}")
-                out[j.idx_v:j.idx_v + j.nv] = value
-            else:
-                out[j.idx_v:j.idx_v + j.nv] = value
-        return out
-
-    def _apply_armature(self, armature) -> None:
-        model = self.model
-        if armature is True:
-            if not np.any(model.armature):
-                raise SceneError(self.scene.source, "effects.armature",
-                                 "true takes the rotor inertias from the robot's SRDF, and this "
-                                 "robot has none; give a table {joint = value} [kg*m^2]")
-            self._check_model_coefficients(np.asarray(model.armature, dtype=float),
-                                           "effects.armature", "SRDF rotor parameters",
-                                           "kg*m^2 or kg")
-        elif armature:
-            model.armature = self._joint_vector(armature, "effects.armature")
-        else:
-            model.armature = np.zeros(model.nv)
-
-    def _check_model_coefficients(self, values: np.ndarray, fld: str, origin: str,
-                                  unit: str) -> None:
-        """Per-coordinate coefficients the robot's files give (``effects.* = true``) obey the
-        same rule as a scene's: finite, >= 0 and <= COEFFICIENT_LIMIT [``unit``]."""
-        ok = np.isfinite(values) & (values >= 0.0) & (values <= COEFFICIENT_LIMIT)
-        if not np.all(ok):
-            k = int(np.argmin(ok))
-            raise SceneError(self.scene.source, fld,
-                             f"true takes the values of the {origin}, which give coordinate "
-                             f"'{self.coordinate_names[k]}' {values[k]:.6g}; expected a finite "
-                             f"number in [0, {COEFFICIENT_LIMIT:g}] [{unit}] (give a table "
-                             "{joint = value} instead)")
-
-    def _check_model_names(self) -> None:
-        """Joint and frame names must be printable on one line (they appear in messages and
-        signal names), must not take the names of the steady rotation's extra joint and frame
-        (``__spin__``, ``__spin_body__``), and the coordinate names must be distinct (a 1-DoF
-        joint 'p[0]' beside a multi-DoF joint 'p' would give two coordinates the same name)."""
-        where = "urdf" if self.scene.urdf is not None else "robot"
-        for kind, names in (("joint", self.joints), ("frame", [f.name for f in self.model.frames])):
-            for name in names:
-                if not name or not _clean(name):
-                    raise SceneError(self.scene.source, where,
-                                     f"the robot has a {kind} named {_show(name)}; pinlin needs "
-                                     f"{kind} names without control characters or line breaks")
-                if name.startswith("__spin") and self.scene.effects.rotation is not None:
-                    raise SceneError(self.scene.source, where,
-                                     f"the robot has a {kind} named '{name}'; names starting "
-                                     "with '__spin' are reserved for the steady rotation "
-                                     "(effects.rotation)")
-        seen: set[str] = set()
-        for name in self.coordinate_names:
-            if name in seen:
-                raise SceneError(self.scene.source, where,
-                                 f"two joints give the coordinate name '{name}' (a 1-DoF joint "
-                                 "named like a coordinate of a multi-DoF joint); rename one")
-            seen.add(name)
-
-    def _check_configuration_spec(self) -> None:
-        """Raw configuration lists in ``operating_point.q`` must already be normalized where the
-        joint's configuration has a unit-norm part: a continuous joint's (cos, sin), a planar
-        joint's (cos, sin) (entries 3-4), a spherical joint's quaternion and a free flyer's
-        (entries 4-7). pinlin does not normalize them: (2, 0) is a typo, not an angle.
-
-        Raises:
-            SceneError: a list of the wrong length or not normalized, naming the joint.
-        """
-        src = self.scene.source
-        for name, value in self.scene.operating_point.q.items():
-            fld = f"operating_point.q.{name}"
-            j = self.joint(name, fld)
-            if not isinstance(value, tuple):
-                continue
-            if len(value) != j.nq:
-                raise SceneError(src, fld, f"joint '{name}' ({j.kind}) has {j.nq} configuration "
-                                           f"values, got {len(value)}")
-            q = pin.neutral(self.model)
-            q[j.idx_q:j.idx_q + j.nq] = value
-            if pin.isNormalized(self.model, q, 1e-6):
-                continue
-            part, unit, instead = _unit_part(j)
-            norm = float(np.linalg.norm(np.asarray(value)[unit])) if unit is not None else np.nan
-            raise SceneError(src, fld, f"joint '{name}' ({j.kind}): {part} must have unit norm, "
-                                       f"got norm {norm:.6g}; pinlin does not normalize a "
-                                       f"configuration (give {instead})")
-
-    def _inputs(self, inputs) -> np.ndarray:
-        if inputs == "all":
-            names = [n for n in self.joints if n != self.base_joint]
-        else:
-            names = list(inputs)
-        idx: list[int] = []
-        for name in names:
-            j = self.joint(name, "inputs.actuated")
-            idx.extend(range(j.idx_v, j.idx_v + j.nv))
-        return np.array(idx, dtype=int)
-
-    def _output_entry(self, entry: str) -> tuple[tuple[str, ...], JointInfo]:
-        """Parts (``q``, ``v``) and joint of one ``outputs.joints`` entry.
-
-        An entry is a joint name (position and velocity) or ``q:`` / ``v:`` followed by a joint
-        name. Joint names may contain ':' (``q:arm:elbow`` is the position of joint
-        ``arm:elbow``); an entry that reads both ways (joints ``q:x`` and ``x`` both exist) is
-        refused as ambiguous.
-        """
-        src = self.scene.source
-        prefix, sep, rest = entry.partition(":")
-        as_part = bool(sep) and prefix in ("q", "v") and rest in self.joints
-        if entry in self.joints:
-            if as_part:
-                what = "position" if prefix == "q" else "velocity"
-                raise SceneError(src, "outputs.joints",
-                                 f"'{entry}' is ambiguous: it is a joint of the robot and the "
-                                 f"{what} of joint '{rest}'; rename one of the joints")
-            return ("q", "v"), self.joints[entry]
-        if sep and prefix in ("q", "v"):
-            return (prefix,), self.joint(rest, "outputs.joints")
-        if sep:
-            raise SceneError(src, "outputs.joints",
-                             f"'{entry}': expected 'name', 'q:name' or 'v:name' (no joint is "
-                             f"named '{entry}')")
-        return ("q", "v"), self.joint(entry, "outputs.joints")
-
-    def _outputs(self) -> OutputMap | None:
-        spec = self.scene.outputs
-        if spec is None:
-            return None
-        rows: list[tuple[int, int]] = []
-        names: list[str] = []
-        origin: dict[str, str] = {}
-        for entry in spec.joints:
-            parts, j = self._output_entry(entry)
-            for part in parts:
-                offset = 0 if part == "q" else self.nv
-                for k, cname in enumerate(j.coordinate_names()):
-                    name = f"{part}:{cname}"
-                    if name in origin:
-                        raise SceneError(self.scene.source, "outputs.joints",
-                                         f"output '{name}' is requested twice (by '{origin[name]}' "
-                                         f"and '{entry}'); list it once")
-                    origin[name] = entry
-                    rows.append((len(names), offset + j.idx_v + k))
-                    names.append(name)
-        frames: list[tuple[int, int]] = []
-        for fname in spec.frames:
-            fid = self.frame_id(fname, "outputs.frames")
-            frames.append((len(names), fid))
-            names.extend(f"p:{fname}[{ax}]" for ax in "xyz")
-        return OutputMap(tuple(rows), tuple(frames), tuple(names))
-
     def _constraints(self):
         from .constraints import ConstraintSet, read_mimic_tags
 
@@ -531,30 +321,6 @@ class System:
                 raise SceneError(self.scene.source, "effects.mimic",
                                  f"the URDF {self.urdf_path} has no <mimic> joints")
         return ConstraintSet(self, mimics)
-
-
-def _unit_part(j: JointInfo) -> tuple[str, slice | None, str]:
-    """Description, slice (within the joint's values) of its unit-norm configuration part, and
-    how to give the joint's position instead."""
-    if j.kind == FREE_FLYER:
-        return ("the quaternion [qx, qy, qz, qw] (entries 4-7)", slice(3, 7),
-                "a table {position = [x, y, z], rpy = [r, p, y]} or a unit quaternion")
-    if j.kind == SPHERICAL:
-        return ("the quaternion [qx, qy, qz, qw]", slice(0, 4),
-                "a table {rpy = [r, p, y]} or a unit quaternion")
-    if j.kind == "JointModelPlanar":
-        return ("the (cos, sin) pair (entries 3-4)", slice(2, 4),
-                "[x, y, cos(theta), sin(theta)]")
-    if j.continuous:
-        return "the (cos, sin) pair", slice(0, 2), "the angle [rad] as a number"
-    return "its unit-norm part", None, "normalized values"
-
-
-def one_dof_configuration(j: JointInfo, value: float) -> np.ndarray:
-    """Configuration entries of a 1-DoF joint at position ``value`` [rad or m]."""
-    if j.continuous:
-        return np.array([np.cos(value), np.sin(value)])
-    return np.array([value])
 
 
 def _robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:

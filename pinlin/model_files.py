@@ -1,0 +1,359 @@
+"""Model files: a :class:`~pinlin.linear_model.LinearModel` saved as .npz, MATLAB .mat or .json.
+
+A file holds the matrices (:data:`MATRICES`, those present), the signal names
+(:data:`NAME_FIELDS`) and the metadata: the model's name, its ``info`` and its operating point,
+as JSON (a member ``meta`` of ``.npz`` and ``.mat`` files, top-level keys of a ``.json`` file).
+Reading never unpickles anything and checks what it reads before it allocates: an ``.npz``
+member's header must declare no more bytes than the member holds, and no object arrays. Every
+fault of a file (corrupt or truncated archive, nesting, wrong types or shapes) is a
+:class:`~pinlin.exceptions.ModelFileError` naming the file and what is wrong.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import zipfile
+import zlib
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+
+from .exceptions import ModelFileError, PinlinError
+from .files import as_path
+from .operating_point import OperatingPoint
+
+#: The matrices a model may have, in the order they are written: first order (A, B, C, D, E,
+#: F), second order (M, C_damp, K, Bu) and the constraint Jacobian G.
+MATRICES = ("A", "B", "C", "D", "E", "F", "M", "C_damp", "K", "Bu", "G")
+#: The signal-name fields of a model.
+NAME_FIELDS = ("state_names", "input_names", "output_names")
+#: The file formats, by suffix.
+FORMATS = (".npz", ".mat", ".json")
+
+Model = TypeVar("Model")
+
+
+def model_format(path: Path) -> str:
+    """The format of model file ``path``: its suffix, one of :data:`FORMATS`.
+
+    Raises:
+        ModelFileError: any other suffix.
+    """
+    if path.suffix not in FORMATS:
+        found = f"'{path.suffix}'" if path.suffix else "no suffix"
+        raise ModelFileError(path, f"unknown model format ({found}); expected "
+                                   f"{', '.join(FORMATS[:-1])} or {FORMATS[-1]}")
+    return path.suffix
+
+
+def serialize(path: Path, fmt: str, arrays: Mapping[str, np.ndarray],
+              names: Mapping[str, Sequence[str]], name: str, info: Mapping[str, Any],
+              operating_point: OperatingPoint | None) -> bytes:
+    """A model file's content in format ``fmt``, in memory (nothing touches the disk).
+
+    Args:
+        path: The file it is meant for (for messages).
+        fmt: One of :data:`FORMATS`.
+        arrays: The model's matrices present, by name (:data:`MATRICES`).
+        names: The signal names, by field (:data:`NAME_FIELDS`).
+        name, info, operating_point: The metadata, written as JSON.
+
+    Raises:
+        ModelFileError: ``info`` or the operating point is not JSON data.
+    """
+    names = {k: list(v) for k, v in names.items()}
+    try:
+        meta = jsonable({"name": name, "info": info,
+                         "operating_point": (operating_point.as_dict()
+                                             if operating_point is not None else None)})
+        meta_text = json.dumps(meta)
+        if fmt == ".json":
+            doc = {**names, **meta, **{k: v.tolist() for k, v in arrays.items()}}
+            return json.dumps(doc, indent=1).encode("utf-8")
+    except (TypeError, ValueError, RecursionError) as exc:
+        raise ModelFileError(path, "cannot save: the model's info or operating point is "
+                                   f"not JSON data: {exc}") from None
+    buf = io.BytesIO()
+    if fmt == ".npz":
+        np.savez(buf, **arrays,
+                 **{k: np.array(v, dtype=str).reshape(len(v)) for k, v in names.items()},
+                 meta=np.array(meta_text))
+    else:
+        from scipy.io import savemat
+
+        cells = {}
+        for k, v in names.items():
+            cell = np.empty(len(v), dtype=object)
+            cell[:] = v
+            cells[k] = cell
+        savemat(buf, {**arrays, **cells, "meta": meta_text}, oned_as="column")
+    return buf.getvalue()
+
+
+def read_model(path: str | Path, build: Callable[..., Model]) -> Model:
+    """Read a model file written by :func:`serialize` (never unpickles anything).
+
+    Args:
+        path: The file.
+        build: Called with the model's fields as keywords (the matrices present, the names,
+            ``operating_point``, ``name``, ``info``); it checks them (a
+            :class:`~pinlin.exceptions.PinlinError` when they are inconsistent).
+
+    Raises:
+        ArgumentError: ``path`` is not a path.
+        ModelFileError: missing file, a folder, unknown suffix, or content that is not a model
+            pinlin wrote (corrupt archive, wrong shapes or types, NaN or inf, repeated names);
+            the message names the file and what is wrong.
+    """
+    path = as_path(path)
+    fmt = model_format(path)
+    if path.is_dir():
+        raise ModelFileError(path, "is a folder, expected a model file")
+    if not path.exists():
+        raise ModelFileError(path, "file not found")
+    if not path.is_file():
+        raise ModelFileError(path, "not a regular file")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ModelFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    try:
+        doc, meta = _READERS[fmt](path, raw)
+        return build(**_model_fields(path, doc, meta))
+    except ModelFileError:
+        raise
+    except PinlinError as exc:  # the constructor's checks: shapes, names, NaN
+        raise ModelFileError(path, f"inconsistent model: {exc}") from None
+    except MemoryError:
+        raise _bad(path, "too large to load into memory") from None
+
+
+def _model_fields(path: Path, doc: Mapping[str, Any], meta: Mapping[str, Any]
+                  ) -> dict[str, Any]:
+    """The model's fields from parsed file content (matrices as arrays or nested lists)."""
+    missing = [k for k in ("A", "B", "C", "D", *NAME_FIELDS) if k not in doc]
+    if missing:
+        raise _bad(path, f"missing {', '.join(repr(k) for k in missing)} (expected A, B, C, "
+                       "D and the state, input and output names)")
+    names = {k: _read_names(path, k, doc[k]) for k in NAME_FIELDS}
+    kwargs = {k: _read_matrix(path, k, doc[k]) for k in MATRICES if k in doc}
+    if "G" in kwargs and kwargs["G"].ndim == 1 and kwargs["G"].size == 0:
+        kwargs["G"] = kwargs["G"].reshape(0, len(names["state_names"]) // 2)
+    name = meta.get("name", "")
+    if not isinstance(name, str):
+        raise _bad(path, f"field 'name' must be a string, got {type(name).__name__}")
+    info = meta.get("info", {})
+    if info is None:
+        info = {}
+    if not isinstance(info, Mapping):
+        raise _bad(path, f"field 'info' must be a table, got {type(info).__name__}")
+    op = meta.get("operating_point")
+    if op is not None and not isinstance(op, Mapping):
+        raise _bad(path, f"field 'operating_point' must be a table, got {type(op).__name__}")
+    try:
+        point = _op_from_dict(op) if op else None
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise _bad(path, f"field 'operating_point' is malformed: {_describe(exc)}") from None
+    return {**kwargs, **names, "operating_point": point, "name": name, "info": info}
+
+
+def _bad(path: Path, reason: str) -> ModelFileError:
+    """The error for file content that is not a model pinlin wrote."""
+    return ModelFileError(path, f"not a pinlin model file: {reason}")
+
+
+def _describe(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if isinstance(exc, KeyError):
+        text = f"missing {text}"
+    return text[:200] or type(exc).__name__
+
+
+def _parse_int(text: str) -> int | float:
+    """JSON integers; one too long for a float becomes inf (refused later as non-finite)
+    rather than an OverflowError or Python's digit-limit ValueError."""
+    return int(text) if len(text) <= 300 else float(text)
+
+
+def _read_json(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _bad(path, f"not UTF-8 text: {exc}") from None
+    try:
+        doc = json.loads(text, parse_int=_parse_int)
+    except json.JSONDecodeError as exc:
+        raise _bad(path, f"not valid JSON: {exc}") from None
+    except RecursionError:
+        raise _bad(path, "not valid JSON: nested too deeply") from None
+    if not isinstance(doc, dict):
+        raise _bad(path, f"expected a JSON object with A, B, C, D and the names, got "
+                       f"{_json_kind(doc)}")
+    return doc, doc
+
+
+def _json_kind(value: Any) -> str:
+    kinds = {list: "a list", str: "a string", bool: "a boolean", type(None): "null",
+             int: "a number", float: "a number"}
+    return kinds.get(type(value), type(value).__name__)
+
+
+def _read_npz(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
+    if not zipfile.is_zipfile(io.BytesIO(raw)):
+        raise _bad(path, "not an .npz archive (not a zip file: truncated or another format)")
+    try:
+        _check_npy_headers(path, raw)
+        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+            doc = {}
+            for k in z.files:
+                try:
+                    doc[k] = z[k]
+                except ValueError as exc:
+                    raise _bad(path, f"member '{k}': {_describe(exc)}") from None
+    except ModelFileError:
+        raise
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, RuntimeError,
+            NotImplementedError, KeyError, zlib.error) as exc:
+        raise _bad(path, f"corrupt .npz archive: {_describe(exc)}") from None
+    if "meta" not in doc:
+        raise _bad(path, "missing 'meta' (expected A, B, C, D, the names and meta)")
+    meta = doc.pop("meta")
+    if meta.dtype.kind != "U" or meta.size != 1:
+        raise _bad(path, f"member 'meta' must be one string, got {meta.dtype} of shape "
+                       f"{meta.shape}")
+    return doc, _meta_from_text(path, str(meta.reshape(())))
+
+
+_NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0,
+                (2, 0): np.lib.format.read_array_header_2_0}
+
+
+def _check_npy_headers(path: Path, raw: bytes) -> None:
+    """Read every array's .npy header before numpy allocates anything: refuse object arrays
+    (pickles) and arrays whose header declares more bytes than the member holds (a small
+    hostile file could otherwise make numpy allocate terabytes)."""
+    with zipfile.ZipFile(io.BytesIO(raw)) as zf:
+        for member in zf.infolist():
+            if not member.filename.endswith(".npy"):
+                continue
+            key = member.filename.removesuffix(".npy")
+            with zf.open(member) as fh:
+                version = np.lib.format.read_magic(fh)
+                if version not in _NPY_HEADERS:
+                    raise _bad(path, f"member '{key}': .npy format version {version} is not "
+                                     "one pinlin writes")
+                shape, _, dtype = _NPY_HEADERS[version](fh)
+            if dtype.hasobject:
+                raise _bad(path, f"member '{key}': holds Python objects (a pickle), which "
+                                 "pinlin never loads")
+            needed = math.prod(shape) * dtype.itemsize
+            if needed > member.file_size:
+                raise _bad(path, f"member '{key}': its header declares shape {shape} "
+                                 f"({needed} bytes) but it holds {member.file_size} bytes")
+
+
+def _meta_from_text(path: Path, text: str) -> Mapping[str, Any]:
+    try:
+        meta = json.loads(text, parse_int=_parse_int)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise _bad(path, f"'meta' is not valid JSON: {_describe(exc)}") from None
+    if not isinstance(meta, dict):
+        raise _bad(path, f"'meta' must be a JSON object, got {_json_kind(meta)}")
+    return meta
+
+
+def _read_mat(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
+    from scipy.io import loadmat
+
+    try:
+        mat = loadmat(io.BytesIO(raw), squeeze_me=False)
+    except Exception as exc:  # noqa: BLE001  scipy raises many kinds for a corrupt file
+        raise _bad(path, f"not a MATLAB .mat file pinlin can read: {_describe(exc)}") from None
+    doc: dict[str, Any] = {k: v for k, v in mat.items() if not k.startswith("__")}
+    for k in NAME_FIELDS:
+        if k in doc:
+            doc[k] = _mat_cell(path, k, doc[k])
+    if "meta" not in doc:
+        raise _bad(path, "missing 'meta' (expected A, B, C, D, the names and meta)")
+    meta = np.asarray(doc.pop("meta"))
+    if meta.dtype.kind != "U" or meta.size != 1:
+        raise _bad(path, "variable 'meta' must be one string")
+    return doc, _meta_from_text(path, str(meta.ravel()[0]))
+
+
+def _mat_cell(path: Path, key: str, cell: Any) -> list[str]:
+    """Names from a MATLAB cell array of strings."""
+    cell = np.asarray(cell)
+    if cell.dtype != object:
+        raise _bad(path, f"variable '{key}' must be a cell array of strings, got {cell.dtype}")
+    out = []
+    for item in cell.ravel():
+        item = np.asarray(item)
+        if item.dtype.kind != "U" or item.size > 1:
+            raise _bad(path, f"variable '{key}' must hold strings, got {item.dtype}")
+        out.append(str(item.ravel()[0]) if item.size else "")
+    return out
+
+
+_READERS = {".json": _read_json, ".npz": _read_npz, ".mat": _read_mat}
+
+
+def _read_names(path: Path, key: str, value: Any) -> list[str]:
+    if isinstance(value, np.ndarray):
+        if value.size == 0:
+            return []
+        if value.dtype.kind != "U" or value.ndim != 1:
+            raise _bad(path, f"'{key}' must be a list of strings, got {value.dtype} of shape "
+                           f"{value.shape}")
+        return [str(s) for s in value]
+    if not isinstance(value, list) or not all(isinstance(s, str) for s in value):
+        raise _bad(path, f"'{key}' must be a list of strings")
+    return value
+
+
+def _read_matrix(path: Path, key: str, value: Any) -> np.ndarray:
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "fiub":
+            raise _bad(path, f"'{key}' must be a real matrix, got dtype {value.dtype}")
+        arr = value.astype(float)
+    else:
+        if not isinstance(value, list):
+            raise _bad(path, f"'{key}' must be a matrix (a list of rows), got "
+                           f"{_json_kind(value)}")
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise _bad(path, f"'{key}' is not a matrix of numbers: {_describe(exc)}") from None
+    if arr.ndim != 2 and arr.size:
+        raise _bad(path, f"'{key}' must be a 2-D matrix, got shape {arr.shape}")
+    return arr
+
+
+def jsonable(obj: Any) -> Any:
+    """``obj`` as plain JSON data: mappings with string keys, lists, numbers, strings."""
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, Sequence) and not isinstance(obj, str):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def _op_from_dict(d: Mapping[str, Any]) -> OperatingPoint:
+    def arr(key):
+        return None if d.get(key) is None else np.asarray(d[key], float)
+
+    return OperatingPoint(q=arr("q"), v=arr("v"), u=arr("u"), a=arr("a"),
+                          residual=arr("residual"), equilibrium=bool(d["equilibrium"]),
+                          tolerance=float(d["tolerance"]), y=arr("y"), lam=arr("lam"),
+                          notes=tuple(d.get("notes", ())),
+                          lam_names=tuple(d.get("lam_names", ())))
