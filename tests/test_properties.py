@@ -111,11 +111,11 @@ def test_random_chain_symmetric_and_general_eigensolvers_agree(tmp_path, links, 
 
 FOUR_BAR = """<?xml version="1.0"?><robot name="fb"><link name="ground"/>
 <link name="crank_link"><inertial><origin xyz="{a2} 0 0"/><mass value="{ma}"/>
-<inertia ixx="1e-5" ixy="0" ixz="0" iyy="{ia}" iyz="0" izz="{ia}"/></inertial></link>
+<inertia ixx="{ja}" ixy="0" ixz="0" iyy="{ia}" iyz="0" izz="{ia}"/></inertial></link>
 <link name="coupler_link"><inertial><origin xyz="{b2} 0 0"/><mass value="{mb}"/>
-<inertia ixx="1e-5" ixy="0" ixz="0" iyy="{ib}" iyz="0" izz="{ib}"/></inertial></link>
+<inertia ixx="{jb}" ixy="0" ixz="0" iyy="{ib}" iyz="0" izz="{ib}"/></inertial></link>
 <link name="rocker_link"><inertial><origin xyz="{c2} 0 0"/><mass value="{mc}"/>
-<inertia ixx="1e-5" ixy="0" ixz="0" iyy="{ic}" iyz="0" izz="{ic}"/></inertial></link>
+<inertia ixx="{jc}" ixy="0" ixz="0" iyy="{ic}" iyz="0" izz="{ic}"/></inertial></link>
 <link name="coupler_tip"/><link name="rocker_tip"/>
 <joint name="crank" type="revolute"><parent link="ground"/><child link="crank_link"/>
 <axis xyz="0 -1 0"/><limit lower="-9" upper="9" effort="1" velocity="1"/></joint>
@@ -163,7 +163,10 @@ def test_random_four_bar_penalty_converges_to_independent(tmp_path, fb):
     urdf = tmp_path / "fb.urdf"
     urdf.write_text(FOUR_BAR.format(a=a, b=b, c=c, d=d, a2=a / 2, b2=b / 2, c2=c / 2, ma=ma,
                                     mb=mb, mc=mc, ia=ma * a * a / 12, ib=mb * b * b / 12,
-                                    ic=mc * c * c / 12))
+                                    ic=mc * c * c / 12, ja=ma * a * a / 12e3,
+                                    jb=mb * b * b / 12e3, jc=mc * c * c / 12e3))
+    # Rods: the moment about the rod's axis is 1e-3 of the others, so every drawn inertia
+    # satisfies the triangle inequality (a fixed 1e-5 broke it for short light cranks).
     scene = pinlin.Scene.from_dict({
         "urdf": str(urdf), "effects": {"gravity": [0, 0, -9.81],
                                        "springs": {"crank": {"stiffness": 5.0,

@@ -127,3 +127,45 @@ def test_mujoco_import_warnings_are_kept_not_written_to_the_working_folder(tmp_p
     assert any("equal lower and upper limits" in w for w in ms.warnings)
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
     assert mujoco.get_mju_user_warning() is before
+
+
+def test_scene_with_armature_passes():
+    """SRDF armature (0.1 kg m^2 on every Talos arm joint) is exported to MuJoCo; without it
+    MuJoCo's mass matrix and eigenvalues would differ by the armature."""
+    scene, _ = check_scene("talos_arm")
+    assert scene.effects.armature and scene.system.model.armature.max() > 0
+    res = validate(scene, name="talos_arm")
+    assert res.passed, res.reason
+    assert res.matrix_error <= MATRIX_TOL and res.eig_error <= 1e-6
+
+
+def test_scene_with_mimic_coupling_passes():
+    """Panda's finger mimic becomes a MuJoCo joint equality (soft: its modes set aside)."""
+    scene = pinlin.Scene.from_robot("panda", effects={"gravity": True, "mimic": True})
+    res = validate(scene, name="panda_mimic")
+    assert res.passed, res.reason
+    assert res.eig_error <= 1e-6 and res.set_aside
+
+
+def test_scene_with_a_weld_passes(tmp_path):
+    """A 4R planar arm welded to the base (three weld rows redundant) against MuJoCo's weld
+    equality between sites."""
+    import numpy as np
+    from test_closed_loops import _planar_arm_urdf
+
+    q_star = np.array([0.3, 0.4, -0.5, 0.2])
+    (tmp_path / "arm4.urdf").write_text(_planar_arm_urdf(q_star))
+    scene = pinlin.Scene.from_dict({
+        "urdf": str(tmp_path / "arm4.urdf"),
+        "effects": {"gravity": [0, 0, -9.81],
+                    "springs": {f"j{i}": {"stiffness": 5.0, "rest": float(q_star[i])}
+                                for i in range(4)}},
+        "loops": [{"name": "grip", "type": "weld", "frame1": "tip", "frame2": "anchor"}],
+        "operating_point": {"q": {f"j{i}": float(q_star[i]) for i in range(4)},
+                            "independent": ["j0"]},
+        "inputs": {"actuated": ["j0"]}})
+    res = validate(scene, name="arm4_weld")
+    # Each eigenvalue within its own tolerance: 1e-6, or the first-order bound where MuJoCo's
+    # stiff soft weld leaves its matrix less accurate (kappa |dA| / |lam|).
+    assert res.passed, res.reason
+    assert res.set_aside

@@ -1,0 +1,160 @@
+"""Do the tests fail when the code is wrong? Plant bugs one at a time and run the suite.
+
+Each mutation replaces one exact snippet of pinlin's source, in a temporary copy of the
+checkout's last commit, with a plausible bug (a consistently rescaled parameter, a flipped
+sign, a dropped term or check). The suite then runs against that copy (pytest -x -q,
+stopping at the first failure): a mutation is *caught* when some test fails and *survives*
+when all pass. A snippet that no longer exists in the source is reported as *stale* (the
+code moved: update the list). Not run by CI: it costs one suite run per survivor (~40 s)
+and a few seconds per caught one.
+
+Usage: python validation/mutation.py [NAME ...]      (default: all)
+Writes validation/reports/mutation.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from pinlin.files import write_text_atomic  # noqa: E402
+
+REPORT = ROOT / "validation" / "reports" / "mutation.md"
+
+#: name: (file, snippet, replacement, what the bug is)
+MUTATIONS: dict[str, tuple[str, str, str, str]] = {
+    "alpha_doubled": (
+        "pinlin/formulations/constrained.py", "    return out[0], out[1], out[2]",
+        "    return 2 * out[0], out[1], out[2]",
+        "penalty factor alpha doubled everywhere (model and info alike)"),
+    "mu_halved": (
+        "pinlin/formulations/constrained.py", "    return out[0], out[1], out[2]",
+        "    return out[0], 0.5 * out[1], out[2]",
+        "penalty damping ratio mu halved everywhere"),
+    "mechanism_outputs_independent_only": (
+        "pinlin/formulations/constrained.py",
+        "Cout = np.hstack([Cout[:, :nv] @ R, Cout[:, nv:] @ R])",
+        "Cout = np.hstack([Cout[:, cp.partition.independent], "
+        "Cout[:, nv:][:, cp.partition.independent]])",
+        "a mechanism's output C ignores the dependent coordinates' motion"),
+    "canonical_output_mp": (
+        "pinlin/formulations/constrained.py",
+        "Cout = np.hstack([Cfull[:, n:] @ Mp_inv, Cfull[:, :n]])",
+        "Cout = np.hstack([Cfull[:, n:] @ Mp, Cfull[:, :n]])",
+        "canonical output C reads v = M_p p instead of M_p^-1 p"),
+    "penalty_b_sign": (
+        "pinlin/formulations/constrained.py", "    B[n:] = Q @ XB",
+        "    B[n:] = -(Q @ XB)", "penalty model's B with its sign flipped"),
+    "canonical_b_sign": (
+        "pinlin/formulations/constrained.py", "    B = np.vstack([Bu, np.zeros_like(Bu)])",
+        "    B = np.vstack([-Bu, np.zeros_like(Bu)])", "canonical model's B with its sign flipped"),
+    "mjcf_drops_armature": (
+        "pinlin/mjcf.py", "        joint.armature = float(system.model.armature[j.idx_v])",
+        "        joint.armature = 0.0", "MuJoCo export drops the armature"),
+    "files_drop_g": (
+        "pinlin/model_files.py", "    names = {k: list(v) for k, v in names.items()}",
+        "    arrays = {k: v for k, v in arrays.items() if k != 'G'}\n"
+        "    names = {k: list(v) for k, v in names.items()}",
+        "saved model files silently drop the constraint Jacobian G"),
+    "hessian_unsymmetrized": (
+        "pinlin/constraints.py", "        return 0.5 * (out + out.T)", "        return out",
+        "loop geometric stiffness without its symmetric part (right only for planar loops)"),
+    "estimate_without_rounding": (
+        "pinlin/derivatives.py",
+        "    rounding = NOISE_SIGMAS * noise / scale + FORMULATION_ROUNDING",
+        "    rounding = 0.0",
+        "finite-difference error estimate without its measured-noise part"),
+    "no_step_range": (
+        "pinlin/derivatives.py", "        if not STEP_MIN <= h <= STEP_MAX:",
+        "        if False:", "finite-difference steps of 2 pi or 1e-300 accepted"),
+    "no_canonical_check": (
+        "pinlin/formulations/constrained.py",
+        "    gap = (_check_canonical_spectrum(A, A_pen, G, alpha, system.scene.name) if G.size",
+        "    gap = (0.0 if G.size",
+        "canonical model returned at any alpha, its spectrum unchecked"),
+    "no_sensitivity_check": (
+        "pinlin/formulations/constrained.py",
+        "    if cp.partition.condition > SENSITIVITY_CHECK:", "    if False:",
+        "no warning near a singular position of a mechanism"),
+    "no_finiteness_check": (
+        "pinlin/linear_model.py", "        _check_finite(fields, model)", "        pass",
+        "models with NaN or inf returned by the fast constructor"),
+    "urdfdom_complaints_ignored": (
+        "pinlin/urdf_io.py", "    if complaints:\n        raise UrdfError",
+        "    if False:\n        raise UrdfError",
+        "urdfdom's complaints on stderr ignored (the backstop behind the XML checks)"),
+    "write_not_atomic": (
+        "pinlin/files.py", "        yield tmp\n", "        yield target\n",
+        "files written in place instead of through a temporary file"),
+}
+
+
+def copy_checkout(dest: Path) -> None:
+    """The last commit of the checkout (``git archive HEAD``), unpacked into ``dest``: the
+    result does not depend on edits in progress."""
+    archive = subprocess.run(["git", "archive", "--format=tar", "HEAD"], cwd=ROOT,
+                             capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
+
+
+def run_one(name: str, work: Path) -> tuple[str, str, float]:
+    """(outcome, first failing test or '', seconds) for mutation ``name`` in a fresh copy."""
+    rel, old, new, _ = MUTATIONS[name]
+    path = work / rel
+    original = path.read_text()
+    if original.count(old) != 1:
+        return "stale", f"snippet found {original.count(old)} times in {rel}", 0.0
+    path.write_text(original.replace(old, new))
+    env = {**os.environ, "PYTHONPATH": str(work), "PYTHONDONTWRITEBYTECODE": "1"}
+    start = time.perf_counter()
+    res = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
+                          "-W", "ignore"], cwd=work, env=env, capture_output=True, text=True,
+                         check=False)
+    seconds = time.perf_counter() - start
+    path.write_text(original)
+    failed = [ln.split(" ")[1] for ln in res.stdout.splitlines() if ln.startswith("FAILED ")]
+    if res.returncode == 0:
+        return "survived", "", seconds
+    return "caught", failed[0] if failed else f"exit {res.returncode}", seconds
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("names", nargs="*", choices=[[], *MUTATIONS], metavar="NAME")
+    names = parser.parse_args(argv).names or list(MUTATIONS)
+    results = []
+    with tempfile.TemporaryDirectory(prefix="pinlin-mutation-") as tmp:
+        work = Path(tmp)
+        copy_checkout(work)
+        for name in names:
+            outcome, where, seconds = run_one(name, work)
+            results.append((name, outcome, where, seconds))
+            print(f"{name:36s} {outcome:9s} {seconds:6.1f} s  {where}", flush=True)
+    caught = sum(r[1] == "caught" for r in results)
+    lines = [
+        "# Mutation check: do the tests fail when the code is wrong?",
+        "",
+        "Produced by `python validation/mutation.py`: each bug below is planted alone in a "
+        "temporary copy of the checkout and the whole suite is run against it (stopping at "
+        "the first failure).",
+        "",
+        f"**Score: {caught} of {len(results)} planted bugs caught.**",
+        "",
+        "| mutation | the bug | outcome | first failing test |",
+        "|---|---|---|---|",
+    ]
+    for name, outcome, where, _ in results:
+        lines.append(f"| {name} | {MUTATIONS[name][3]} | {outcome} | {where} |")
+    write_text_atomic(REPORT, "\n".join(lines) + "\n")
+    print(f"{caught} of {len(results)} caught; report written to {REPORT}")
+
+
+if __name__ == "__main__":
+    main()
