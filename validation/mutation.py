@@ -119,7 +119,8 @@ def run_one(name: str, work: Path) -> tuple[str, str, float]:
                          check=False)
     seconds = time.perf_counter() - start
     path.write_text(original)
-    failed = [ln.split(" ")[1] for ln in res.stdout.splitlines() if ln.startswith("FAILED ")]
+    failed = [ln.split(" ")[1] for ln in res.stdout.splitlines()
+              if ln.startswith(("FAILED ", "ERROR "))]
     if res.returncode == 0:
         return "survived", "", seconds
     return "caught", failed[0] if failed else f"exit {res.returncode}", seconds
@@ -133,6 +134,13 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory(prefix="pinlin-mutation-") as tmp:
         work = Path(tmp)
         copy_checkout(work)
+        env = {**os.environ, "PYTHONPATH": str(work), "PYTHONDONTWRITEBYTECODE": "1"}
+        baseline = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p",
+                                   "no:cacheprovider", "-W", "ignore"], cwd=work, env=env,
+                                  capture_output=True, text=True, check=False)
+        if baseline.returncode != 0:
+            sys.exit("the unmutated copy fails its own tests: fix that first\n"
+                     + baseline.stdout[-2000:])
         for name in names:
             outcome, where, seconds = run_one(name, work)
             results.append((name, outcome, where, seconds))

@@ -29,7 +29,7 @@ or branch, and what was expected):
   again before a model is returned (all entries finite, none subnormal); a failure names the
   branch of the offending row. Incremental values of nonlinear elements obey the same range.
   The two linear solves of the matrix method (dissipative loop, dependent storage) are
-  equilibrated and checked after the fact (``pinlin.graph.graph._solve``): values that leave
+  equilibrated and checked after the fact (``pinlin.graph.solve.solve``): values that leave
   fewer than five significant digits are refused, naming the branches involved.
 - Operating inputs and ``[operating_point] guess`` values are finite numbers within
   [-1e100, 1e100]. Integers too large for a double (TOML allows any number of digits) are
@@ -129,8 +129,7 @@ def show(value: Any, limit: int = 60) -> str:
         text = repr(value)
     except Exception:  # a hostile __repr__ or a deeply nested value must not hide the error
         text = f"<{type(value).__name__}>"
-    text = " ".join(text.split())
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return clip(text, limit)
 
 
 def _digits(value: int) -> int:

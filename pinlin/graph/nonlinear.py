@@ -42,6 +42,8 @@ import numpy as np
 from scipy.optimize import root
 
 from ..exceptions import ArgumentError
+from .excess import combine_excess, excess_groups
+from .matrix import matrix_method, state_space
 from .model import RANGE, VALUE_MAX, VALUE_MIN, Branch, GraphError, clip, real, show
 
 _REL_TOL = 1e-9      # |sigma_i| against the sum of its terms
@@ -139,7 +141,7 @@ class NonlinearGraph:
 
     def __init__(self, graph) -> None:
         self.graph = graph
-        excess = graph._excess_groups(nonlinear=True)
+        excess = excess_groups(graph, nonlinear=True)
         if excess:
             group = excess[0]
             kind = "T-type elements in parallel" if graph.branch(group[0]).type == "T" else \
@@ -150,7 +152,7 @@ class NonlinearGraph:
                              "undetermined; replace them by one element (linear ones are "
                              "combined unless combine=False)")
         linearized = _with_unit_values(graph)
-        self.form = linearized._formulate()
+        self.form = matrix_method(linearized)
         self.branches = graph.branches
         if self.form.d:
             names = [graph.branches[k].name for k in self.form.d]
@@ -158,7 +160,7 @@ class NonlinearGraph:
                                                                    "dependent energy storage "
                                                                    f"({', '.join(names)}) are "
                                                                    "not supported")
-        self.in_tree = linearized._in_tree
+        self.in_tree = self.form.in_tree
         self.states = self.form.tree.states
 
     def primaries(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -314,11 +316,10 @@ def _with_unit_values(graph):
 def linearize_nonlinear(graph, *, outputs: Sequence[str] | None, combine: bool,
                         u0: Mapping[str, float] | None, x0: Sequence[float] | None):
     """Equilibrium and linear model about it."""
-    if combine:   # linear excess storage first: the equilibrium is then isolated
-        work, combined, aliases = graph._combined()
-        work.guess = graph.guess
-    else:
-        work, combined, aliases = graph, {}, {}
+    # linear excess storage combined first (unless combine=False): the equilibrium is then
+    # isolated; a combined copy keeps the graph's guess
+    work, combined, aliases, _ = combine_excess(graph, combine)
+    work.guess = graph.guess
     nl = NonlinearGraph(work)
     form = nl.form
     inputs = {b.name: b.input for b in work.branches if b.is_source}
@@ -393,11 +394,11 @@ def linearize_nonlinear(graph, *, outputs: Sequence[str] | None, combine: bool,
         increments[b.name] = value
         inc.branches.append(Branch(b.name, b.type, b.from_, b.to, value))
     inc.outputs = graph.outputs
-    form_inc = inc._formulate()      # inc's branches were checked (or merged from checked ones)
+    form_inc = matrix_method(inc)    # inc's branches were checked (or merged from checked ones)
     form_inc.aliases = aliases
     form_inc.tree.combined = combined
     form_inc.tree.excess = []
-    model = graph._linear_model(form_inc, outputs, info={
+    model = state_space(graph, form_inc, outputs, info={
         "operating_point": {"x0": dict(zip(form_inc.tree.states, xe.tolist(), strict=True)),
                             "u0": inputs},
         "incremental_values": increments})
