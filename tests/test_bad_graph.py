@@ -544,3 +544,13 @@ def test_size_limits(tmp_path, capfd):
     many = "".join(branch(f"R{i}", "D", f"n{i}", f"n{i + 1}", value="1.0") for i in range(5001))
     assert_bad_file(tmp_path, capfd, "many", many, "field 'branches'", "5001 branches: "
                     "expected at most 5000")
+
+
+def test_path_like_giving_bytes_is_an_argument_error():
+    class BytesPath:
+        def __fspath__(self) -> bytes:
+            return b"graph.toml"
+
+    assert isinstance(BytesPath(), os.PathLike)
+    with pytest.raises(ArgumentError, match="argument 'path'"):
+        Graph.load(BytesPath())

@@ -394,7 +394,11 @@ def load_graph_file(path: str | os.PathLike[str]):
                                     f"{type(path).__name__} {show(path)}")
     if isinstance(path, str) and not path.strip():
         raise ArgumentError("path", "empty file name; expected a graph .toml file")
-    path = Path(path)
+    try:
+        path = Path(path)
+    except TypeError:  # an os.PathLike whose __fspath__ gives bytes
+        raise ArgumentError("path", "expected a file path whose os.fspath() is a str, got "
+                                    f"{type(path).__name__}") from None
     text = _read_text(path)
     if not text.strip():
         raise GraphError(path, None, "the graph file is empty; expected [[branches]] tables")
