@@ -2,7 +2,9 @@
 ``pinlin bench``, ``pinlin graph``, ``pinlin robots``.
 
 Bad input never produces a traceback: the error goes to stderr as one line and the exit status
-is 2.
+is 2. Warnings (:class:`pinlin.AccuracyWarning` and others) go to stderr as one
+``warning: ...`` line each, without the Python source line; this applies inside :func:`main`
+only, library users keep Python's usual warnings.
 """
 
 from __future__ import annotations
@@ -10,14 +12,21 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .exceptions import ArgumentError, ModelFileError, PinlinError
 
+if TYPE_CHECKING:
+    from .coordinates import JointInfo
+
 EXIT_BAD_INPUT = 2
+#: Width of printed matrices: wider ones are printed in labelled blocks of columns.
+MATRIX_WIDTH = 100
 
 
 class _Parser(argparse.ArgumentParser):
@@ -30,6 +39,54 @@ class _Parser(argparse.ArgumentParser):
 
 class _UsageError(Exception):
     pass
+
+
+class _Done(Exception):  # noqa: N818  (not an error: the work is done)
+    """Raised by an action that has printed everything (``--version``): exit status 0."""
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: pinlin's version and those of the libraries it rests on."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS,
+                 default: str = argparse.SUPPRESS, help: str | None = None) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        print(version_text())
+        raise _Done
+
+
+def version_text() -> str:
+    """``pinlin X (pin Y, mujoco Z, numpy W, Python V)``: versions as imported."""
+    import platform
+
+    from . import __version__
+
+    parts = []
+    for label, module in (("pin", "pinocchio"), ("mujoco", "mujoco"), ("numpy", "numpy")):
+        try:
+            parts.append(f"{label} {__import__(module).__version__}")
+        except Exception:  # noqa: BLE001  a missing or broken library is reported, not raised
+            parts.append(f"{label} not importable")
+    parts.append(f"Python {platform.python_version()}")
+    return f"pinlin {__version__} ({', '.join(parts)})"
+
+
+def _plural(count: int, word: str, plural: str | None = None) -> str:
+    """"1 input", "2 inputs" (``plural`` for irregular words)."""
+    return f"{count} {word if count == 1 else plural or word + 's'}"
+
+
+def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  file: object = None, line: str | None = None) -> None:
+    """``warnings.showwarning`` for the CLI: one ``warning: ...`` line on stderr (pinlin's own
+    warnings bare, others with their category), no source line or file path."""
+    text = " ".join(str(message).split())
+    if not (category.__module__ or "").startswith("pinlin"):
+        text = f"{category.__name__}: {text}"
+    print(f"warning: {text}", file=sys.stderr)
 
 
 def _check_out(path: Path) -> None:
@@ -69,10 +126,75 @@ def _fmt(values: np.ndarray) -> str:
                            max_line_width=100)
 
 
+def _number(x: float) -> str:
+    """A matrix entry: 6 significant digits, exact zeros (also -0) as 0."""
+    return "0" if x == 0 else f"{x:.6g}"
+
+
+def _vector(values: np.ndarray) -> str:
+    """[a b c] with 6 significant digits."""
+    return "[" + " ".join(_number(float(x)) for x in values) + "]"
+
+
+def format_matrix(key: str, matrix: np.ndarray, rows: Sequence[str], columns: Sequence[str],
+                  width: int = MATRIX_WIDTH) -> str:
+    """``key =`` and the matrix with its row and column names, in blocks of whole columns
+    that fit in ``width`` characters; each block after the first of several names its
+    columns (``A, columns 9-16 of 76 (v:...):``). Entries print with 6 significant digits;
+    an exact zero as ``0`` and a nonzero entry below 1e-12 of the largest (rounding noise, for
+    a matrix computed in float64) as ``~0``."""
+    matrix = np.asarray(matrix)
+    n_rows, n_cols = matrix.shape
+    head = f"{key} = ({n_rows} x {n_cols})"
+    if matrix.size == 0:
+        return f"{head} empty"
+    noise = 1e-12 * float(np.abs(matrix).max())
+    cells = [[_number(float(x)) if not 0 < abs(x) < noise else "~0" for x in row]
+             for row in matrix]
+    label = max(len(r) for r in rows)
+    widths = [max(len(columns[j]), *(len(cells[i][j]) for i in range(n_rows)))
+              for j in range(n_cols)]
+    blocks: list[tuple[int, int]] = []
+    start, used = 0, label
+    for j, w in enumerate(widths):
+        if j > start and used + 2 + w > width:
+            blocks.append((start, j))
+            start, used = j, label
+        used += 2 + w
+    blocks.append((start, n_cols))
+    lines = [head]
+    for a, b in blocks:
+        if len(blocks) > 1:
+            lines.append(f"{key}, columns {a + 1}-{b} of {n_cols} ({columns[a]} .. "
+                         f"{columns[b - 1]}):")
+        lines.append(" " * label + "".join(f"  {columns[j]:>{widths[j]}}" for j in range(a, b)))
+        for i in range(n_rows):
+            lines.append(f"{rows[i]:<{label}}" + "".join(f"  {cells[i][j]:>{widths[j]}}"
+                                                          for j in range(a, b)))
+    return "\n".join(lines)
+
+
+def _joint_value(j: JointInfo, values: np.ndarray) -> str:
+    """A joint's configuration as a person reads it: angle, position and rpy, or the value."""
+    import pinocchio as pin
+
+    from .coordinates import FREE_FLYER, SPHERICAL
+
+    if j.continuous:
+        return f"{float(np.arctan2(values[1], values[0])):.6g} (angle)"
+    if j.kind in (FREE_FLYER, SPHERICAL):
+        quat = values[3:7] if j.kind == FREE_FLYER else values[:4]
+        rpy = pin.rpy.matrixToRpy(pin.Quaternion(np.asarray(quat, float)).matrix())
+        where = f"position {_vector(values[:3])} m, " if j.kind == FREE_FLYER else ""
+        return f"{where}rpy {_vector(rpy)} rad"
+    return _fmt(values) if j.nq > 1 else f"{values[0]:.6g}"
+
+
 def _print_operating_point(model, system) -> None:
     op = model.operating_point
     print(f"scene '{model.name}': nq = {system.nq}, nv = {system.nv}, "
-          f"{model.n_inputs} inputs, {model.n_outputs} outputs; base {model.info['base']}")
+          f"{_plural(model.n_inputs, 'input')}, {_plural(model.n_outputs, 'output')}; "
+          f"base {model.info['base']}")
     effects = model.info["effects"]
     print(f"effects in play: {', '.join(effects) if effects else 'none'}")
     extra = ""
@@ -91,10 +213,7 @@ def _print_operating_point(model, system) -> None:
               f"{model.info['error_estimate']:.1e}")
     print("operating point:")
     for name, j in system.joints.items():
-        values = op.q[j.idx_q:j.idx_q + j.nq]
-        shown = (f"{float(np.arctan2(values[1], values[0])):.6g} (angle)" if j.continuous
-                 else _fmt(values) if j.nq > 1 else f"{values[0]:.6g}")
-        print(f"  q[{name}] = {shown}")
+        print(f"  q[{name}] = {_joint_value(j, op.q[j.idx_q:j.idx_q + j.nq])}")
     for name, u in zip(model.input_names, op.u, strict=True):
         print(f"  {name} = {u:.6g}")
     if op.lam is not None:
@@ -120,14 +239,18 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     model = linearize(scene, formulation=args.formulation, derivatives=args.derivatives,
                       step=args.step,
                       allow_non_equilibrium=True if args.allow_non_equilibrium else None,
+                      allow_ill_conditioned=args.allow_ill_conditioned,
                       basis=args.basis, alpha=args.alpha, mu=args.mu, omega=args.omega)
     _print_operating_point(model, scene.system)
     print()
     print(modal(model, method=args.method))
     if args.matrices:
-        with np.printoptions(precision=6, suppress=True, linewidth=120):
-            for key in ("A", "B", "C", "D"):
-                print(f"\n{key} =\n{getattr(model, key)}")
+        names = {"A": (model.state_names, model.state_names),
+                 "B": (model.state_names, model.input_names),
+                 "C": (model.output_names, model.state_names),
+                 "D": (model.output_names, model.input_names)}
+        for key, (rows, columns) in names.items():
+            print(f"\n{format_matrix(key, getattr(model, key), rows, columns)}")
     if out is not None:
         model.save(out)
         print(f"\nmodel written to {out}")
@@ -139,7 +262,8 @@ def _cmd_robots(args: argparse.Namespace) -> int:
 
     status = loadable_robots()
     ok = [n for n, reason in status.items() if reason is None]
-    print(f"{len(ok)} of {len(status)} example-robot-data robots load:")
+    print(f"{len(ok)} of {_plural(len(status), 'example-robot-data robot')} "
+          f"load{'s' if len(ok) == 1 else ''}:")
     for name in ok:
         rm = load_robot(name)
         base = "floating" if rm.free_flyer else "fixed"
@@ -185,7 +309,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     for r in results:
         print(f"{r.name:28s} {r.status:15s} {r.reason}")
     failed = [r.name for r in results if r.failed]
-    print(f"{len(results)} systems: {sum(r.passed for r in results)} pass, {len(failed)} fail"
+    print(f"{_plural(len(results), 'system')}: {sum(r.passed for r in results)} pass, "
+          f"{len(failed)} fail"
           + (f" ({', '.join(failed)})" if failed else ""))
     return 1 if failed else 0
 
@@ -212,7 +337,7 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
         raise MujocoError(f"MuJoCo cannot write MJCF for '{scene.name}': {exc}") from None
     write_text_atomic(out, xml)
     print(f"MJCF of '{scene.name}' written to {out} (nq = {ms.model.nq}, nv = {ms.model.nv}, "
-          f"{ms.model.neq} equalities, dt = {dt:g} s)")
+          f"{_plural(ms.model.neq, 'equality', 'equalities')}, dt = {dt:g} s)")
     return 0
 
 
@@ -222,7 +347,8 @@ def _cmd_graph(args: argparse.Namespace) -> int:
     graph = Graph.load(args.file)
     tree = graph.normal_tree(combine=not args.no_combine)
     model = graph.linearize(combine=not args.no_combine, standard_form=args.standard_form)
-    print(f"graph '{graph.name}' ({graph.domain}): {len(graph.branches)} branches, inputs "
+    branches = _plural(len(graph.branches), "branch", "branches")
+    print(f"graph '{graph.name}' ({graph.domain}): {branches}, inputs "
           f"{', '.join(model.input_names) or 'none'}")
     print(tree.describe())
     if "operating_point" in model.info:
@@ -230,15 +356,35 @@ def _cmd_graph(args: argparse.Namespace) -> int:
         print("operating point: " + ", ".join(f"{k} = {v:.6g}" for k, v in
                                               {**op["x0"], **op["u0"]}.items()))
     if args.standard_form and graph.linearize(combine=not args.no_combine).E is not None:
-        print("standard form: x' = x - E u (eqs. 90-93)")
-    with np.printoptions(precision=6, suppress=False, linewidth=120):
-        print(f"states: {', '.join(model.state_names)}")
-        print(f"outputs: {', '.join(model.output_names)}")
-        for key in ("A", "B", "E", "C", "D", "F"):
-            value = getattr(model, key)
-            if value is not None:
-                print(f"{key} =\n{value}")
+        print("standard form: new state x' = x - E u (primed names), B' = B + A E, "
+              "D' = D + C E (eqs. 90-93)")
+    print(f"states: {', '.join(model.state_names)}")
+    print(f"outputs: {', '.join(model.output_names)}")
+    states, inputs, outputs = model.state_names, model.input_names, model.output_names
+    shapes = {"A": (states, states), "B": (states, inputs), "E": (states, inputs),
+              "C": (outputs, states), "D": (outputs, inputs), "F": (outputs, inputs)}
+    for key, (rows, columns) in shapes.items():
+        value = getattr(model, key)
+        if value is not None:
+            print(format_matrix(key, value, rows, columns))
+    print(f"poles (eigenvalues of A) [1/s]: {format_poles(model.A)}")
     return 0
+
+
+def format_poles(A: np.ndarray) -> str:
+    """The eigenvalues of A, slowest first, a conjugate pair once as ``re +- im j``; "none"
+    for a model without states."""
+    if A.size == 0:
+        return "none"
+    lam = np.linalg.eigvals(A)
+    lam = lam[np.lexsort((-lam.imag, lam.real, np.abs(lam)))]
+    shown = []
+    for x in lam:
+        if x.imag < 0 and np.any(np.isclose(lam, x.conjugate(), rtol=1e-12, atol=0.0)):
+            continue  # printed with its partner
+        re = _number(float(x.real))
+        shown.append(f"{re} +- {_number(float(x.imag))}j" if x.imag > 0 else re)
+    return ", ".join(shown)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -247,6 +393,8 @@ def build_parser() -> argparse.ArgumentParser:
     from .modal import METHODS
 
     parser = _Parser(prog="pinlin", description="Linear models of multibody systems.")
+    parser.add_argument("--version", action=_VersionAction,
+                        help="print the versions of pinlin, pin, mujoco, numpy and exit")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     lin = sub.add_parser("linearize", help="linearize a scene and print its modes")
     lin.add_argument("target", metavar="SCENE_OR_ROBOT",
@@ -269,7 +417,12 @@ def build_parser() -> argparse.ArgumentParser:
     lin.add_argument("--method", choices=METHODS, default="auto", help="eigensolver")
     lin.add_argument("--allow-non-equilibrium", action="store_true",
                      help="linearize even if the inputs cannot hold q0 at rest")
-    lin.add_argument("--matrices", action="store_true", help="print A, B, C, D")
+    lin.add_argument("--allow-ill-conditioned", action="store_true",
+                     help="linearize even if the mass matrix is singular to working precision "
+                          "(scaled to unit diagonal, condition >= 0.1/(n eps)): a warning instead "
+                          "of an error, but no reliable digit")
+    lin.add_argument("--matrices", action="store_true",
+                     help="print A, B, C, D with their row and column names")
     lin.add_argument("--out", metavar="FILE", type=_file_name("--out"),
                      help="save the model (.npz, .mat or .json)")
     lin.set_defaults(func=_cmd_linearize)
@@ -299,7 +452,9 @@ def build_parser() -> argparse.ArgumentParser:
     gra = sub.add_parser("graph", help="state equations of a linear graph (Rowell)")
     gra.add_argument("file", metavar="FILE.toml")
     gra.add_argument("--standard-form", action="store_true",
-                     help="remove input-derivative terms: x' = x - E u")
+                     help="remove the input-derivative term E u' with the new state "
+                          "x' = x - E u (state names get a prime; B' = B + A E, "
+                          "D' = D + C E)")
     gra.add_argument("--no-combine", action="store_true",
                      help="keep A-type elements in series and T-type in parallel (report the "
                           "excess states instead of combining them)")
@@ -316,6 +471,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pinlin`` console script; returns the exit status."""
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        return _main(argv)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     try:
         args = build_parser().parse_args(argv)
         limit = getattr(args, "memory_limit", None)
@@ -325,6 +486,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         with memory_limit_override(limit, argument="--memory-limit"):
             return int(args.func(args))
+    except _Done:
+        return 0
     except _UsageError as exc:
         print(str(exc), file=sys.stderr)
         return EXIT_BAD_INPUT

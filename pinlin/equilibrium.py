@@ -66,9 +66,12 @@ def static_stiffness(system, q: np.ndarray, lam: np.ndarray | None) -> np.ndarra
     return K
 
 
-def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: bool = False
+def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: bool = False,
+                      allow_ill_conditioned: bool = False
                       ) -> tuple[OperatingPoint, ConstrainedPoint]:
-    """Operating point of a scene with constraints and/or ``solve = "positions"``."""
+    """Operating point of a scene with constraints and/or ``solve = "positions"``
+    (``allow_ill_conditioned``: accept an M(q0) singular to working precision where the
+    acceleration off equilibrium needs M^-1, see :meth:`pinlin.System.mass_inverse`)."""
     spec = system.scene.operating_point
     cons = system.constraints
     notes: list[str] = []
@@ -103,7 +106,8 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
         if cons or not allow_non_equilibrium:
             extra = (" (with loops a non-equilibrium cannot be linearized)" if cons and
                      allow_non_equilibrium else "; actuate it, change q0, or set "
-                     "operating_point.allow_non_equilibrium = true")
+                     "operating_point.allow_non_equilibrium = true (--allow-non-equilibrium "
+                     "on the command line)")
             raise EquilibriumError(
                 f"scene '{system.scene.name}': q0 is not an equilibrium: a generalized force "
                 f"of {residual[worst]:.6g} N or N*m along '{name}' is left over (tolerance "
@@ -119,7 +123,7 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
                          f"condition {part.condition:.3g}")
     a0 = np.zeros(system.nv)
     if not equilibrium:  # open chain, opted in
-        a0 = -(system.mass_inverse(q0) @ residual)
+        a0 = -(system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned) @ residual)
         notes.append(f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
                      f"'{system.coordinate_names[worst]}'")
     op = OperatingPoint(q=q0, v=np.zeros(system.nv), u=u0, a=a0, residual=residual,

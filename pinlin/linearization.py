@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .conditioning import AccuracyWarning
+from .conditioning import AccuracyWarning, refuse_condition, singular_to_working_precision
 from .derivatives import BACKENDS, resolve_steps
 from .equilibrium import ConstrainedPoint, require_equilibrium_support, solve_constrained
-from .exceptions import ArgumentError, ShapeError
+from .exceptions import ArgumentError, ModelError, ShapeError
 from .formulations import (
     BASES,
     FORMULATIONS,
@@ -95,33 +95,39 @@ def _configuration(system: System, q: object) -> np.ndarray:
 
 
 def resolve_operating_point(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool,
-                            constrained: bool = False, mass_inverse: np.ndarray | None = None
+                            constrained: bool = False, mass_inverse: np.ndarray | None = None,
+                            allow_ill_conditioned: bool = False
                             ) -> tuple[OperatingPoint, ConstrainedPoint | None]:
     """The operating point about q0 and, where the constrained path ran, what the constrained
     formulations need (``constrained``: take that path even for an open chain, as the penalty
     and canonical formulations need its constraint point)."""
     if system.constraints or constrained or system.scene.operating_point.solve != "inputs":
         require_equilibrium_support(system)
-        return solve_constrained(system, q0, allow_non_equilibrium=allow_non_equilibrium)
+        return solve_constrained(system, q0, allow_non_equilibrium=allow_non_equilibrium,
+                                 allow_ill_conditioned=allow_ill_conditioned)
     return hold_at_rest(system, q0, allow_non_equilibrium=allow_non_equilibrium,
-                        mass_inverse=mass_inverse), None
+                        mass_inverse=mass_inverse,
+                        allow_ill_conditioned=allow_ill_conditioned), None
 
 
 def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None = None,
                     allow_non_equilibrium: bool | None = None,
-                    mass_inverse: np.ndarray | None = None) -> OperatingPoint:
+                    mass_inverse: np.ndarray | None = None,
+                    allow_ill_conditioned: bool = False) -> OperatingPoint:
     """The operating point the scene asks for, resolved exactly as :func:`linearize` does
     (loops assembled, constraint forces solved; ``q`` replaces the whole configuration).
 
-    ``mass_inverse`` is M(q0)^-1 when the caller has it already.
+    ``mass_inverse`` is M(q0)^-1 when the caller has it already; ``allow_ill_conditioned`` as
+    for :func:`linearize` (M^-1 is needed off equilibrium, for the acceleration a0).
     """
     system = _system(scene)
     allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
+    ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     q0 = _configuration(system, q)
     if allow is None:
         allow = system.scene.operating_point.allow_non_equilibrium
     return resolve_operating_point(system, q0, allow_non_equilibrium=allow,
-                                   mass_inverse=mass_inverse)[0]
+                                   mass_inverse=mass_inverse, allow_ill_conditioned=ill)[0]
 
 
 def _check_options(system: System, formulation: str, derivatives: str,
@@ -156,7 +162,8 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
               derivatives: str = "analytic", step: float | Mapping[str, float] | None = None,
               q: np.ndarray | None = None, allow_non_equilibrium: bool | None = None,
               basis: str | None = None, alpha: float | None = None, mu: float | None = None,
-              omega: float | None = None, estimate_error: bool = True) -> LinearModel:
+              omega: float | None = None, estimate_error: bool = True,
+              allow_ill_conditioned: bool = False) -> LinearModel:
     """Linear state-space model of a scene about its operating point.
 
     Args:
@@ -180,6 +187,12 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
         alpha, mu, omega: Penalty factor [kg (or kg*m^2) per constraint unit^2], damping ratio
             [-] and natural frequency [rad/s] of the constraint violation (penalty, canonical
             only); defaults 1e7, 1.0, 10.0.
+        allow_ill_conditioned: Linearize even when the (reduced) mass matrix is singular to
+            working precision (scaled to unit diagonal, condition >= 0.1/(n eps); see
+            :mod:`pinlin.conditioning`): the model is returned with an
+            :class:`~pinlin.AccuracyWarning` instead of a :class:`~pinlin.ModelError`, but no
+            digit of it is reliable. A coordinate that moves no inertia at all (M^-1 not
+            finite) is refused either way.
 
     Returns:
         The model, with x = [dq; v] (names ``q:<coordinate>``, ``v:<coordinate>``), inputs
@@ -187,12 +200,15 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
 
     Raises:
         ArgumentError: a wrong type or value, or an option that does not apply.
+        ModelError: the mass matrix is singular, or singular to working precision without
+            ``allow_ill_conditioned`` (the message names the motion and bodies responsible).
         PinlinError: any other bad input (scene, URDF, operating point), by subclass.
     """
     formulation = _choice("formulation", formulation, FORMULATIONS)
     derivatives = _choice("derivatives", derivatives, BACKENDS)
     allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
     estimate = _flag("estimate_error", estimate_error)
+    ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     system = _system(scene)
     _check_options(system, formulation, derivatives, step, basis, alpha, mu, omega)
     q0 = _configuration(system, q)
@@ -202,20 +218,44 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
     if system.constraints or formulation != "independent" \
             or system.scene.operating_point.solve != "inputs":
         op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
-                                         constrained=True)
+                                         constrained=True, allow_ill_conditioned=ill)
         assert cp is not None
         if formulation == "independent":
             model = linearize_reduced(system, op, cp, basis=basis or "partitioned", **numeric)
+            if not ill:
+                _refuse_singular_reduced(model)
         else:
             build = linearize_penalty if formulation == "penalty" else linearize_canonical
             model = build(system, op, cp, alpha=alpha, mu=mu, omega=omega, **numeric)
     else:
-        Minv = system.mass_inverse(q0)  # shared by the operating point and the model
+        # Shared by the operating point and the model; refuses a singular M (unless ill).
+        Minv = system.mass_inverse(q0, allow_ill_conditioned=ill)
         op, _ = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
-                                        mass_inverse=Minv)
+                                        mass_inverse=Minv, allow_ill_conditioned=ill)
         model = linearize_independent(system, op, mass_inverse=Minv, **numeric)
     _warn_inaccurate(model)
     return model
+
+
+def _refuse_singular_reduced(model: LinearModel) -> None:
+    """ModelError when the reduced mass matrix of a constrained model is singular to working
+    precision (the open-chain path refuses in ``System.mass_inverse``)."""
+    estimate = model.info.get("condition", {}).get("mass_matrix")
+    if estimate is None or model.M is None:
+        return
+    # The recorded 1-norm condition is >= cond_2 / n, and Jacobi scaling gains at most a
+    # factor n (van der Sluis): n^2 times it bounds the scaled condition.
+    n = model.M.shape[0]
+    condition = singular_to_working_precision(model.M, n * n * estimate)
+    if condition is not None:
+        raise ModelError(
+            f"model '{model.name}': the reduced mass matrix is singular to working precision "
+            f"(scaled to unit diagonal, its condition number is {condition:.1e}, at or above "
+            f"0.1/(n eps) = {refuse_condition(n):.1e}: not one digit of its inverse is reliable); "
+            "give the bodies the independent coordinates move "
+            "inertia (or the joints armature), choose other independent coordinates, or pass "
+            "allow_ill_conditioned=True (--allow-ill-conditioned on the command line) to "
+            "linearize anyway")
 
 
 def _warn_inaccurate(model: LinearModel) -> None:
@@ -226,4 +266,5 @@ def _warn_inaccurate(model: LinearModel) -> None:
         warnings.warn(AccuracyWarning(
             f"model '{model.name}': {model.info['derivatives']} derivatives with steps "
             f"({steps}) have an estimated relative error of {est:.1e} in A; the default steps "
-            "or derivatives='analytic' are more accurate", 1.0 / est), stacklevel=3)
+            "or derivatives='analytic' (no --step, or --derivatives analytic on the command "
+            "line) are more accurate", 1.0 / est), stacklevel=3)

@@ -15,6 +15,12 @@ Conventions: wn = |lam| [rad/s], zeta = -Re(lam) / |lam|. Eigenvalues with |lam|
 rigid-body (zero) modes: wn = 0 and zeta = NaN by definition (never computed as 0/0), labelled
 "rigid" in the table. The default rigid_tol is 1e-6 * max(1, largest |lam|) [rad/s], well above
 the O(sqrt(eps) |lam|max) spread that rounding gives a zero eigenvalue of a Jordan block.
+
+The printed table shows a real part (and so zeta) as 0 where it is below the eigenvalue's
+rounding level (:attr:`ModalAnalysis.rounding`, kappa eps |A|_F: how far rounding A's entries
+moves it to first order), so an undamped mode prints zeta 0, not -5e-18; the arrays
+``eigenvalues`` and ``zeta`` keep the computed values, and which modes are stable does not
+change (that uses rigid_tol, many orders above).
 """
 
 from __future__ import annotations
@@ -126,6 +132,20 @@ class ModalAnalysis:
             kappa = np.where(self.rigid, np.inf, kappa)  # Jordan blocks are defective
         return kappa
 
+    @functools.cached_property
+    def rounding(self) -> np.ndarray:
+        """Rounding level of each eigenvalue [1/s]: kappa eps |A|_F, the first-order move of
+        an eigenvalue with condition number kappa when A's entries are rounded (the backward
+        error of the eigensolver is of that size). Zero for the symmetric solver, whose
+        eigenvalues +-i w and +-sigma have exactly zero real or imaginary parts; at most
+        sqrt(eps) |A|_F (a defective eigenvalue, kappa = inf, moves like sqrt(eps))."""
+        if self.method == "symmetric":
+            return np.zeros(len(self.eigenvalues))
+        eps = np.finfo(float).eps
+        norm = float(np.linalg.norm(self.model.A))
+        kappa = np.nan_to_num(self.condition, nan=np.inf)
+        return np.minimum(kappa * eps, np.sqrt(eps)) * norm
+
     def dominant(self, index: int, threshold: float = 0.5, limit: int = 3) -> list[str]:
         """Names of the coordinates whose |shape| entry is at least ``threshold`` in mode
         ``index``, largest first."""
@@ -183,19 +203,22 @@ class ModalAnalysis:
         """A readable table with one row per mode."""
         head = (f"{'#':>3}  {'eigenvalue [1/s]':>28}  {'wn [rad/s]':>11}  {'f [Hz]':>10}  "
                 f"{'zeta':>8}  {'kind':<13}  dominant coordinates")
+        count = len(self.eigenvalues)
         lines = [f"Modes of '{self.model.name}' ({self.method} eigensolver, "
-                 f"{len(self.eigenvalues)} eigenvalues, rigid below {self.rigid_tol:.1e} rad/s)",
-                 head, "-" * len(head)]
+                 f"{count} eigenvalue{'' if count == 1 else 's'}, rigid below "
+                 f"{self.rigid_tol:.1e} rad/s)", head, "-" * len(head)]
         for n, i in enumerate(self.modes(), start=1):
             lam = self.eigenvalues[i]
             if self.rigid[i]:
                 ev, wn, f, zeta = "0 (rigid)", "0", "0", "-"
             else:
                 im = abs(lam.imag)
-                ev = (f"{lam.real:+.6g} +- {im:.6g}j" if im > self.rigid_tol
-                      else f"{lam.real:+.6g}")
+                # A real part within rounding of 0 (an undamped mode) prints as 0, zeta too.
+                noise = abs(lam.real) <= self.rounding[i]
+                re = "0" if noise else f"{lam.real:+.6g}"
+                ev = f"{re} +- {im:.6g}j" if im > self.rigid_tol else re
                 wn, f = f"{self.wn[i]:.6g}", f"{self.wn[i] / (2 * np.pi):.6g}"
-                zeta = f"{self.zeta[i]:.4g}"
+                zeta = "0" if noise else f"{self.zeta[i]:.4g}"
             dom = ", ".join(self.dominant(i))
             lines.append(f"{n:>3}  {ev:>28}  {wn:>11}  {f:>10}  {zeta:>8}  {self.kind(i):<13}  "
                          f"{dom}")

@@ -145,17 +145,21 @@ def residual_tolerance(tau_scale: float) -> float:
 
 
 def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool = False,
-                 mass_inverse: np.ndarray | None = None) -> OperatingPoint:
+                 mass_inverse: np.ndarray | None = None, allow_ill_conditioned: bool = False
+                 ) -> OperatingPoint:
     """Inputs u0 that hold q0 at rest (``solve = "inputs"``).
 
     Args:
         q0: A finite configuration (as :func:`configuration` and ``pinlin.linearize`` give).
         mass_inverse: M(q0)^-1 when the caller has it (needed only off equilibrium).
+        allow_ill_conditioned: Accept an M(q0) singular to working precision when M^-1 is
+            needed (see :meth:`pinlin.System.mass_inverse`).
 
     Raises:
         EquilibriumError: some unactuated coordinate carries a generalized force the inputs
             cannot cancel and ``allow_non_equilibrium`` is False. The message names the worst
             coordinate and the residual.
+        ModelError: off equilibrium, M(q0) is singular (see :meth:`pinlin.System.mass_inverse`).
     """
     nv = system.nv
     gravity = system.static_force(q0)
@@ -179,11 +183,12 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
                 f"scene '{system.scene.name}': q0 is not an equilibrium: the inputs cannot "
                 f"supply {residual[worst]:.6g} N or N*m along '{name}' (largest unactuated "
                 f"residual, tolerance {tol:.1e}); actuate it, change q0, or set "
-                "operating_point.allow_non_equilibrium = true",
+                "operating_point.allow_non_equilibrium = true (--allow-non-equilibrium on the "
+                "command line)",
                 residual, system.coordinate_names)
         # M a0 + g = S u0 + tau_spring and S u0 = g - tau_spring - residual: a0 = -M^-1 residual.
         if mass_inverse is None:
-            mass_inverse = system.mass_inverse(q0)
+            mass_inverse = system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned)
         a0 = -(mass_inverse @ residual)
         notes = (f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
                  f"'{name}', the model describes the motion about (q0, v = 0) with "

@@ -16,11 +16,13 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 import pinocchio as pin
 
 from .arrays import complement, read_only
+from .conditioning import refuse_condition, scaled_condition, singular_to_working_precision
 from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configuration: re-exported)
     FREE_FLYER,
     SPHERICAL,
@@ -278,31 +280,101 @@ class System:
         A[:n, n:] = np.eye(n)
         return read_only(A)
 
-    def mass_inverse(self, q: np.ndarray) -> np.ndarray:
+    def mass_inverse(self, q: np.ndarray, *, allow_ill_conditioned: bool = False
+                     ) -> np.ndarray:
         """M(q)^-1 from ``pin.computeMinverse`` (one recursion, no factorization), symmetric.
 
+        M is checked on the way (see :mod:`pinlin.conditioning`): n sum_i M_ii (M^-1)_ii (one
+        ``crba`` for diag M) bounds the condition of M scaled to unit diagonal from above, and
+        only where that bound reaches 0.1/(n eps) do the eigenvalues of the scaled M decide.
+
+        Args:
+            allow_ill_conditioned: Return M^-1 as computed (finite, but without a reliable
+                digit) when M is singular to working precision, instead of refusing.
+
         Raises:
-            ModelError: M is singular (a coordinate moves no inertia).
+            ModelError: M is singular: a coordinate moves no inertia at all (M^-1 is not
+                finite, whatever ``allow_ill_conditioned`` says), or M is singular to working
+                precision (scaled condition >= 0.1/(n eps)) and ``allow_ill_conditioned`` is
+                False. The message names the coordinate, or the motion and the bodies
+                responsible, and offers the opt-in only where it would give a model.
         """
         if self.rotation is None:
+            M = pin.crba(self.model, self.data, q)
             Minv = pin.computeMinverse(self.model, self.data, q)
         else:  # the spin coordinate is prescribed: invert the block of the other coordinates
             M = self.mass_matrix(q)
             Minv = np.linalg.inv(M) if np.all(np.isfinite(M)) else M
-        # A coordinate that moves no inertia makes its row of M^-1 inf or NaN, diagonal included.
         diag = Minv.diagonal()
-        if diag.size and not (diag.min() > 0.0 and diag.max() < np.inf):
-            self._raise_singular(q)
+        n = diag.size
+        if not n:
+            return Minv
+        # A coordinate that moves no inertia makes its row of M^-1 inf or NaN, diagonal included
+        # (NaN compares False).
+        if not (diag.max() < np.inf and diag.min() > -np.inf):
+            self._raise_singular(q, liftable=False)
+        # n sum M_ii Minv_ii = tr(Ms) tr(Ms^-1) >= cond_2(Ms) for M^-1 positive definite, Ms
+        # the unit-diagonal scaling of M.
+        bound = n * float(M.diagonal() @ diag)
+        if diag.min() > 0.0 and bound < refuse_condition(n):
+            return Minv
+        condition = singular_to_working_precision(np.triu(M) + np.triu(M, 1).T, bound)
+        if condition is None and diag.min() <= 0.0:  # M^-1 indefinite although M is not
+            condition = float("inf")
+        if condition is not None and not allow_ill_conditioned:
+            self._raise_singular(q, liftable=True)
         return Minv
 
-    def _raise_singular(self, q: np.ndarray) -> None:
+    def _raise_singular(self, q: np.ndarray, liftable: bool) -> NoReturn:
+        """A :class:`ModelError` that says why M(q) is singular: the coordinate whose row of M
+        is zero, or else the motion (eigenvector of M's smallest eigenvalue) that meets no
+        inertia and the bodies it moves; ``liftable``: M^-1 is finite, so
+        ``allow_ill_conditioned`` would give a model (the message offers it)."""
         M = self.mass_matrix(q)
-        diag = np.diag(M)
-        bad = int(np.argmin(np.where(np.isfinite(diag), diag, -np.inf)))
-        raise ModelError(f"scene '{self.scene.name}': the mass matrix is singular at q0: "
-                         f"coordinate '{self.coordinate_names[bad]}' carries no inertia "
-                         f"(M[{bad},{bad}] = {diag[bad]:.3g}); give the bodies it moves mass "
-                         "or armature")
+        where = f"scene '{self.scene.name}': the mass matrix is singular at q0: "
+        zero = np.flatnonzero(~(np.abs(M).max(axis=1) > 0.0))  # NaN counts as zero
+        if zero.size:
+            bad = int(zero[0])
+            more = ""
+            if zero.size > 1:
+                others = [self.coordinate_names[i] for i in zero[1:4]]
+                k = zero.size - 1
+                more = (f", nor {'does' if k == 1 else 'do'} {k} other coordinate"
+                        f"{'' if k == 1 else 's'} ({', '.join(others)}"
+                        f"{', ...' if zero.size > 4 else ''})")
+            raise ModelError(f"{where}coordinate '{self.coordinate_names[bad]}' carries no "
+                             f"inertia (row {bad} of M is zero){more}; give the bodies it moves "
+                             "mass or armature")
+        scaled = scaled_condition(M)
+        condition = f"{scaled:.1e}" if np.isfinite(scaled) else "infinite"
+        precision = "singular to working precision" if liftable else "singular"
+        w, V = np.linalg.eigh(M)
+        mode = V[:, 0] / V[np.argmax(np.abs(V[:, 0])), 0]
+        order = np.argsort(-np.abs(mode), kind="stable")
+        motion = ", ".join(f"{self.coordinate_names[k]} {mode[k]:+.3g}" for k in order[:4]
+                           if abs(mode[k]) >= 0.01)
+        bodies, still, rotational = _moved_bodies(self, q, mode)
+        one = len(bodies) == 1
+        if bodies and still:
+            have = (f"{'it has' if one else 'they have'} no rotational inertia" if rotational == 0
+                    else f"{'its' if one else 'their'} rotational inertia is at most "
+                         f"{rotational:.1e} kg*m^2")
+            why = (f"it turns {_join(bodies)} about axes through "
+                   f"{'its centre' if one else 'their centres'} of mass, and {have} about "
+                   f"{'it' if one else 'them'}")
+            fix = "give them rotational inertia (or the joints armature)"
+        else:
+            why = (f"it moves {_join(bodies) or 'no body'}, whose inertia along it is "
+                   f"{max(w[0], 0.0) / w[-1]:.0e} of the rest")
+            fix = "give the bodies it moves inertia (or the joints armature)"
+        lift = (", or pass allow_ill_conditioned=True (--allow-ill-conditioned on the command "
+                "line) to linearize anyway") if liftable else ""
+        raise ModelError(
+            f"scene '{self.scene.name}': the mass matrix is {precision} at q0 (scaled to unit "
+            f"diagonal, its condition number is {condition}, at or above 0.1/(n eps) = "
+            f"{refuse_condition(self.nv):.1e}: not one digit of its inverse is reliable): the "
+            f"motion [{motion}] meets a generalized inertia of {w[0]:.1e} against {w[-1]:.3g} "
+            f"for the heaviest motion: {why}; {fix}{lift}")
 
     def spring_torque(self, q: np.ndarray) -> np.ndarray:
         """Generalized spring force at configuration ``q`` [N*m or N]."""
@@ -345,6 +417,43 @@ def _robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:
                                     loader.ref_posture)
                  if rm.srdf_path is not None else pin.neutral(model))
     return model, np.asarray(q_ref, float)
+
+
+def _moved_bodies(system: System, q: np.ndarray, mode: np.ndarray
+                  ) -> tuple[list[str], bool, float]:
+    """The bodies with mass that velocity ``mode`` (size nv) moves at q, as "'name' (mass kg)",
+    heaviest first; whether each turns about its own centre of mass (its centre's speed below
+    1e-6 of the fastest body's spatial velocity); and the largest rotational inertia about the
+    axis it turns about [kg*m^2]."""
+    model = system.model
+    data = pin.Data(model)
+    pin.forwardKinematics(model, data, q, mode)
+    body = {}
+    for frame in model.frames:
+        if frame.type == pin.FrameType.BODY:
+            body.setdefault(frame.parentJoint, frame.name)
+    speeds = [np.linalg.norm(data.v[j].vector) for j in range(1, model.njoints)]
+    fast = max(speeds, default=0.0)
+    moved: list[tuple[float, str]] = []
+    still, rotational = True, 0.0
+    for j, speed in enumerate(speeds, start=1):
+        inertia = model.inertias[j]
+        if speed <= 1e-6 * fast or inertia.mass <= 0.0:
+            continue
+        w, v = data.v[j].angular, data.v[j].linear
+        v_com = v + np.cross(w, inertia.lever)
+        still &= bool(np.linalg.norm(v_com) <= 1e-6 * fast)
+        if w @ w > 0.0:
+            rotational = max(rotational, float(w @ inertia.inertia @ w / (w @ w)))
+        moved.append((inertia.mass, f"'{body.get(j, model.names[j])}' ({inertia.mass:.3g} kg)"))
+    moved.sort(key=lambda item: -item[0])
+    return [name for _, name in moved], still, rotational
+
+
+def _join(items: list[str]) -> str:
+    """"a", "a and b", "a, b and c"."""
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1] \
+        if items else ""
 
 
 def _as_slice(index: np.ndarray) -> slice | np.ndarray:
