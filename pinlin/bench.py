@@ -15,7 +15,6 @@ output folder.
 
 from __future__ import annotations
 
-import platform
 import statistics
 import sys
 import time
@@ -25,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import check_folder_target, check_ours, make_folder, write_atomic, write_text_atomic
+from .bench_report import plot, read_report, report  # noqa: F401  (re-exported: old home)
+from .files import check_folder_target, check_ours
 
 #: Steps h (fd3, fd5) and eps (MuJoCo), half-decades from 1e-2 to 1e-9.
 STEPS = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9,
@@ -201,7 +201,7 @@ def measure(name: str, repeats: int, progress: Progress) -> SystemResult:
         if system.constraints:
             raise mjcf.MujocoError("MuJoCo's loop equalities act on the dependent coordinates "
                                    "(a different, soft model); see pinlin validate")
-        ms = mjcf.build(system)
+        ms = mjcf.build(system, visual=False)  # visual geoms would only add kinematics time
     except mjcf.MujocoError as exc:
         result.note = str(exc)
         for _ in range(2 * len(STEPS) + 2):
@@ -272,147 +272,15 @@ def _interleaved_ratios(scene, ms, op, result: SystemResult, repeats: int) -> di
     return {k: statistics.median(v) for k, v in rounds.items()}
 
 
-# ------------------------------------------------------------------------------------------------
-def _fmt_time(t: float) -> str:
-    return f"{t * 1e3:.3f}" if t < 1 else f"{t * 1e3:.0f}"
-
-
-def report(results: list[SystemResult], out: Path, command: str) -> str:
-    import pinocchio as pin
-
-    lines = [
-        "# What accuracy costs in time",
-        "",
-        f"Produced by `{command}` on {platform.machine()} ({platform.processor() or 'cpu'}), "
-        f"pin {pin.__version__}, MuJoCo {_mujoco_version()}, numpy {np.__version__}. "
-        "Error: max |A - A_analytic| / max |A_analytic|. Each method's best step is taken "
-        "from the half-decade sweep and then searched on tenth-decades within half a decade "
-        "either side (the same search for every method). The analytic model's own error is "
-        "estimated as fd5's best agreement with it; as a second estimate, its agreement with "
-        "`pin.computeABADerivatives` (a different analytic algorithm, so the difference is "
-        "rounding of one or the other) is listed beside. Time: median of one complete "
-        "`pinlin.linearize` (operating point included, error estimate off) or one MuJoCo "
-        "`continuous_state_matrix` (state set + `mjd_transitionFD` + exact recovery of A from "
-        "the Euler step). Floating bases: rotated base, free fall at rest (a0 != 0). "
-        "Mechanisms: MuJoCo's soft loop equalities give a different (dependent-coordinate) "
-        "model, not compared here.",
-        "",
-        "## Headline (best step of each method)",
-        "",
-        "| system | nv | analytic [ms] | analytic error (est., fd5) | analytic vs ABA derivatives "
-        "| fd3 best: h, error, ms "
-        "| fd5 best: h, error, ms | MuJoCo fwd best: eps, error, ms "
-        "| MuJoCo ctr best: eps, error, ms |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in results:
-        cells = []
-        for key in ("fd3", "fd5", "mujoco forward", "mujoco centered"):
-            if key in r.curves:
-                h, e, t = r.curves[key].best()
-                cells.append(f"{h:.1e}, {e:.1e}, {_fmt_time(t)}")
-            else:
-                cells.append("n/a")
-        lines.append(f"| {r.name} ({r.kind}) | {r.nv} | {_fmt_time(r.analytic_time)} | "
-                     f"{r.analytic_error:.1e} | {_fmt_error(r.aba_agreement)} | "
-                     + " | ".join(cells) + " |")
-    hum = next((r for r in results if r.name == HUMANOID), None)
-    if hum is not None and hum.ratios:
-        _, emc, _ = hum.curves["mujoco centered"].best()
-        lines += [
-            "",
-            f"## Targets on the floating-base humanoid ({HUMANOID}, nv = {hum.nv})",
-            "",
-            "Time ratios measured round by round (analytic, fd5 and MuJoCo timed back to back "
-            "in each round, median of the per-round ratios).",
-            "",
-            "| ratio | measured | target |",
-            "|---|---|---|",
-            f"| time fd5 (best h) / time analytic | {hum.ratios['fd5']:.1f} | >= 30 |",
-            f"| time MuJoCo centered (best eps) / time analytic | "
-            f"{hum.ratios['mujoco centered']:.1f} | >= 10 |",
-            f"| error of MuJoCo centered (best eps) / analytic error estimate | "
-            f"{emc / hum.analytic_error:.2g} | >= 1000 |",
-            f"| the same with the ABA cross-check as the analytic error | "
-            f"{emc / hum.aba_agreement:.2g} | - |",
-            f"| error of fd5 at the default step / analytic error estimate | "
-            f"{_error_at(hum.curves['fd5'], 1e-3) / hum.analytic_error:.2g} | - |",
-        ]
-    lines += ["", "## Sweeps", ""]
-    for r in results:
-        lines += [f"### {r.name} ({r.kind}, nv = {r.nv})", "",
-                  f"![{r.name}](accuracy_vs_time/{r.name}.png)", "",
-                  "| h / eps | " + " | ".join(f"{k} error | {k} ms" for k in r.curves) + " |",
-                  "|---|" + "---|---|" * len(r.curves)]
-        for i, h in enumerate(STEPS):
-            cells = [f"{c.errors[i]:.1e} | {_fmt_time(c.times[i])}" for c in r.curves.values()]
-            lines.append(f"| {h:.0e} | " + " | ".join(cells) + " |")
-        fine = [f"{c.refined[1]:.1e} at {c.refined[0]:.2e} | {_fmt_time(c.refined[2])}"
-                if c.refined else "- | -" for c in r.curves.values()]
-        lines.append("| fine search | " + " | ".join(fine) + " |")
-        lines.append(f"\nanalytic: {_fmt_time(r.analytic_time)} ms, error estimate "
-                     f"{r.analytic_error:.1e}" + (f". MuJoCo: {r.note}" if r.note else "") + "\n")
-    text = "\n".join(lines) + "\n"
-    make_folder(out)
-    write_text_atomic(out / "accuracy_vs_time.md", text)
-    return text
-
-
-def _fmt_error(e: float) -> str:
-    return "n/a" if not np.isfinite(e) else f"{e:.1e}"
-
-
-def _error_at(curve: Curve, h: float) -> float:
-    k = int(np.argmin(np.abs(np.log10(np.array(curve.steps)) - np.log10(h))))
-    return curve.errors[k]
-
-
-def _mujoco_version() -> str:
-    import mujoco
-
-    return mujoco.__version__
-
-
-def plot(results: list[SystemResult], out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import matplotlib.ticker
-
-    folder = make_folder(out / "accuracy_vs_time")
-    style = {"fd3": "o-", "fd5": "s-", "mujoco forward": "v--", "mujoco centered": "^--"}
-    for r in results:
-        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
-        for key, c in r.curves.items():
-            line, = ax1.loglog(c.steps, c.errors, style[key], label=key)
-            if c.refined is not None:
-                ax1.loglog([c.refined[0]], [c.refined[1]], "x", color=line.get_color(), ms=9)
-            ax2.loglog(np.array(c.times) * 1e3, c.errors, style[key].replace("-", ""), label=key)
-        ax1.axhline(r.analytic_error, color="k", lw=1, ls=":", label="analytic (est.)")
-        ax1.set_xlabel("step h / eps")
-        ax1.set_ylabel("max |A - A_analytic| / max |A_analytic|")
-        ax1.set_title(f"{r.name}: error versus step")
-        ax1.invert_xaxis()
-        ax2.loglog([r.analytic_time * 1e3], [r.analytic_error], "k*", ms=14, label="analytic")
-        ax2.set_xlabel("median time [ms]")
-        ax2.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax2.set_title(f"{r.name}: error versus time")
-        for ax in (ax1, ax2):
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=8)
-        fig.tight_layout()
-        try:
-            write_atomic(folder / f"{r.name}.png",
-                         lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=90))
-        finally:
-            plt.close(fig)
-
-
 def run(systems: list[str], repeats: int = 5, out_dir: str | Path = "validation/reports",
-        progress: bool = True, command: str = "pinlin bench") -> list[SystemResult]:
+        progress: bool = True, command: str = "pinlin bench", *, merge: bool = True
+        ) -> list[SystemResult]:
     """Measure ``systems`` (robot or bundled scene names, scene or URDF files), write the
-    report and plots (atomically) into ``out_dir``.
+    report and plots (atomically) into ``out_dir``, print the report and where it is.
+
+    With ``merge`` (the default), an existing ``accuracy_vs_time.md`` keeps the rows and
+    sections of the systems not measured now (:func:`pinlin.bench_report.report`), so that
+    ``pinlin bench ur5`` updates the ur5 rows only.
 
     Everything that can be refused is refused before the long run and before anything is
     written: ``repeats``, the systems, an output folder that is a file, an existing
@@ -457,8 +325,12 @@ def run(systems: list[str], repeats: int = 5, out_dir: str | Path = "validation/
     finally:
         bar.close()
     plot(results, out)  # the plots first: the report that links them is the last write
-    text = report(results, out, command)
+    text = report(results, out, command, merge=merge)
     print(text)
+    kept = len(read_report(out / "accuracy_vs_time.md")[0]) - len(results)
+    print(f"Report written to {out / 'accuracy_vs_time.md'} ({len(results)} systems measured"
+          + (f", {kept} kept from an earlier run" if kept else "") + f"; plots in "
+          f"{out / 'accuracy_vs_time'})")
     return results
 
 

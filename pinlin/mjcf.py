@@ -6,6 +6,10 @@ The URDF is imported through ``MjSpec`` after its ``<visual>``, ``<collision>``,
 friction loss, URDF damping and mimic equalities are not part of a scene unless it says so).
 Joint limits and actuator force clamps are switched off, contacts disabled; gravity, armature,
 viscous damping and springs are set from the pinlin system; a floating base gets a free joint.
+Where MuJoCo refuses a link's inertia on its own (placeholder links whose fixed children carry
+the mass), that link is merged into the body Pinocchio simulates (:mod:`pinlin.mjcf_merge`);
+MuJoCo's own import is kept wherever it compiles. Visual-only geoms without mass or contacts
+(:mod:`pinlin.mjcf_visual`) make the exported MJCF visible in MuJoCo's viewer.
 
 Coordinates. MuJoCo's free joint has qpos = [p_world, quat (w, x, y, z)] and
 qvel = [v_world, w_body]; Pinocchio's free flyer has q = [p, quat (x, y, z, w)] and
@@ -32,6 +36,8 @@ import mujoco
 import numpy as np
 
 from .exceptions import ArgumentError, PinlinError
+from .mjcf_merge import Merge, UnrepresentableBodyError, import_urdf
+from .mjcf_visual import add_visual_geoms
 
 _STRIP = ("visual", "collision", "mimic", "dynamics", "transmission", "gazebo")
 
@@ -52,6 +58,9 @@ class MujocoScene:
         dt: Time step [s].
         warnings: What MuJoCo warned while importing and compiling (for example joint limits
             it ignores; limits are switched off anyway).
+        merged: URDF links whose inertial MuJoCo refused on its own, merged into the body
+            Pinocchio simulates (:mod:`pinlin.mjcf_merge`); empty when MuJoCo's import of the
+            file compiles as it is.
     """
 
     model: mujoco.MjModel
@@ -61,6 +70,7 @@ class MujocoScene:
     free: bool
     dt: float
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    merged: tuple[Merge, ...] = field(default_factory=tuple)
 
 
 @contextmanager
@@ -96,17 +106,21 @@ LOOP_IMPEDANCE = 0.9999
 LOOP_TIMECONST_STEPS = 2.0
 
 
-def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> MujocoScene:
+def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE, *,
+          visual: bool = True) -> MujocoScene:
     """The MuJoCo model of ``system`` with exactly the scene's effects.
 
     Loops become ``connect`` (point) or ``weld`` equalities between sites at the two frames,
     mimic couplings ``joint`` equalities (q_m = offset + multiplier q_j), both stiff
     (solref time constant 2 dt, solimp ``impedance``). Steady rotation cannot be expressed.
-    MuJoCo's warnings while importing and compiling are kept in ``warnings``.
+    MuJoCo's warnings while importing and compiling are kept in ``warnings``. Links whose
+    inertia MuJoCo refuses on its own are merged as Pinocchio merges them (``merged``).
 
     Args:
         dt: Time step [s], finite and > 0.
         impedance: Solver impedance of the equalities, strictly between 0 and 1.
+        visual: Add visual-only geoms (:func:`pinlin.mjcf_visual.add_visual_geoms`: no mass,
+            no contacts) so that MuJoCo's viewer shows the mechanism.
 
     Raises:
         ArgumentError: ``dt`` or ``impedance`` out of range.
@@ -118,7 +132,7 @@ def build(system, dt: float = 1e-3, impedance: float = LOOP_IMPEDANCE) -> Mujoco
     if not 0.0 < impedance < 1.0:
         raise ArgumentError("impedance", f"must be strictly between 0 and 1, got {impedance!r}")
     with _captured_warnings() as caught:
-        ms = _build(system, dt, impedance)
+        ms = _build(system, dt, impedance, bool(visual))
     ms.warnings = tuple(caught)
     return ms
 
@@ -145,20 +159,23 @@ def check_time_step(dt: object, argument: str = "dt") -> float:
     return value
 
 
-def _build(system, dt: float, impedance: float) -> MujocoScene:
+def _build(system, dt: float, impedance: float, visual: bool) -> MujocoScene:
     scene = system.scene
     if system.rotation is not None:
         raise MujocoError(f"scene '{scene.name}': steady rotation has no MuJoCo counterpart "
                           "(MuJoCo integrates in an inertial frame)")
     text = strip_urdf(system.urdf_path.read_text(encoding="utf-8"))
+    free = system.base_joint is not None
     try:
-        spec = mujoco.MjSpec.from_string(text)
+        mujoco.MjSpec.from_string(text)
     except Exception as exc:  # MuJoCo raises ValueError with its reason
         raise MujocoError(f"MuJoCo cannot import {system.urdf_path}: {exc}") from None
-    free = system.base_joint is not None
-    if free:
-        root = spec.worldbody.first_body()
-        root.add_freejoint(name=system.base_joint)
+    try:
+        spec, merged = import_urdf(text, system.base_joint if free else None)
+    except UnrepresentableBodyError as exc:
+        raise MujocoError(f"MuJoCo refuses '{scene.name}': {exc}") from None
+    except Exception as exc:  # MuJoCo's reason for refusing anything else
+        raise MujocoError(f"MuJoCo refuses '{scene.name}': {exc}") from None
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
     spec.option.timestep = dt
     g = scene.effects.gravity
@@ -196,6 +213,8 @@ def _build(system, dt: float, impedance: float) -> MujocoScene:
         else:
             rest = system.q_rest[j.idx_q]
         joint.springref = float(rest)
+    if visual:
+        add_visual_geoms(spec)
     try:
         model = spec.compile()
     except Exception as exc:
@@ -209,7 +228,7 @@ def _build(system, dt: float, impedance: float) -> MujocoScene:
     if model.nv != system.nv:
         raise MujocoError(f"scene '{scene.name}': MuJoCo has {model.nv} dofs, Pinocchio "
                           f"{system.nv}")
-    return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt)
+    return MujocoScene(model, mujoco.MjData(model), spec, dof, free, dt, merged=merged)
 
 
 def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) -> None:

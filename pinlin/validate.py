@@ -36,21 +36,23 @@ Tolerances, written into every report:
 from __future__ import annotations
 
 import math
-import platform
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from os import PathLike
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .files import (
-    check_folder_target,
-    check_ours,
-    make_folder,
-    write_atomic,
-    write_text_atomic,
+from .files import check_folder_target, check_ours, make_folder
+from .validation_report import (  # noqa: F401  (re-exported: the report's old home)
+    INDEX_MARKER,
+    INDEX_NAME,
+    PNG_MARKER,
+    REPORT_MARKER,
+    picture_name,
+    write_report,
+    write_summary,
 )
 
 MATRIX_TOL = 1e-8
@@ -61,12 +63,6 @@ EPS_OPEN = 3e-4
 #: Loops: stiff soft constraints (time constant 2 dt) make larger steps inaccurate.
 EPS_LOOP = 1e-6
 LOOP_DT = 1e-4
-#: First line of every file pinlin writes into a report folder: an existing file there that
-#: does not start so is the user's and is never replaced.
-REPORT_MARKER = "# Validation of '"
-INDEX_MARKER = "# Validation reports"
-PNG_MARKER = b"\x89PNG"
-_INDEX_ROW = re.compile(r"^\| \[(?P<name>[^\]]+)\]\((?P=name)\.md\) \| (?P<status>[^|]*?) \|")
 
 
 @dataclass
@@ -92,6 +88,13 @@ class Validation:
     log_eigs: np.ndarray | None = None
     eig_tols: np.ndarray | None = None
     conditioning_limited: int = 0
+    #: URDF links merged into the bodies Pinocchio simulates ("link -> body (mass)"), because
+    #: MuJoCo refused the inertia of the links in ``refused`` on their own.
+    merged: list[str] = field(default_factory=list)
+    refused: list[str] = field(default_factory=list)
+    #: PNG of the MuJoCo scene at the operating point, or why there is none.
+    picture: bytes | None = None
+    picture_note: str = ""
 
     @property
     def passed(self) -> bool:
@@ -198,14 +201,62 @@ def _match(ref: np.ndarray, lam: np.ndarray) -> np.ndarray:
     return out
 
 
-def validate(scene, name: str | None = None) -> Validation:
-    """Compare one scene's linear model with MuJoCo."""
+def _resolve(scene: object, name: str | None) -> tuple[object, str]:
+    """(scene, report name) for a Scene, a System, or a scene file / URDF / bundled scene /
+    robot name resolved as ``pinlin validate`` resolves it."""
+    from .bench import check_scene
+    from .exceptions import ArgumentError
+    from .scene import Scene
+    from .system import System
+
+    if name is not None and not isinstance(name, str):
+        raise ArgumentError("name", f"expected a report name (str), got {type(name).__name__}")
+    if isinstance(scene, System):
+        scene = scene.scene
+    if isinstance(scene, Scene):
+        return scene, name or scene.name
+    if isinstance(scene, str | PathLike):
+        text = str(Path(scene)) if isinstance(scene, PathLike) else scene
+        if not isinstance(text, str) or not text:
+            raise ArgumentError("scene", "expected a scene file, URDF, bundled scene or robot "
+                                         "name")
+        return check_scene(text)[0], name or report_name(text)
+    raise ArgumentError("scene", "expected a pinlin.Scene, a pinlin.System, or a scene file, "
+                                 "URDF, bundled scene or robot name (str or path), got "
+                                 f"{type(scene).__name__}")
+
+
+def validate(scene, name: str | None = None, *, picture: bool | None = None) -> Validation:
+    """Compare one scene's linear model with MuJoCo.
+
+    Args:
+        scene: A :class:`~pinlin.Scene`, its :class:`~pinlin.system.System`, or a scene file,
+            URDF, bundled scene or robot name (str or path), resolved as ``pinlin validate``
+            resolves it: a floating-base robot named so falls freely at rest from a rotated
+            base pose (:func:`pinlin.bench.check_scene`).
+        name: Name of the report (default: the scene's name, or the file's stem).
+        picture: Render the MuJoCo scene at the operating point into ``picture`` (PNG; see
+            :mod:`pinlin.mjcf_picture`); default: for scenes with loops (the mechanisms).
+
+    Returns:
+        The outcome; a scene pinlin or MuJoCo refuses is a result with that status, not an
+        exception.
+
+    Raises:
+        ArgumentError: ``scene`` or ``name`` of the wrong type.
+        UnknownRobotError, SceneError, UrdfError, ...: a name or file that does not resolve
+            to a scene.
+    """
     from . import mjcf
     from .exceptions import PinlinError
     from .linearization import linearize
     from .modal import modal
 
-    name = name or scene.name
+    scene, name = _resolve(scene, name)
+    if picture is not None and not isinstance(picture, bool):
+        from .exceptions import ArgumentError
+
+        raise ArgumentError("picture", f"expected True, False or None, got {picture!r}")
     try:
         system = scene.system
         model = linearize(scene)
@@ -223,6 +274,8 @@ def validate(scene, name: str | None = None) -> Validation:
     op = model.operating_point
     try:
         ms = mjcf.build(system, dt=dt)
+        res.merged = [m.describe() for m in ms.merged]
+        res.refused = list(dict.fromkeys(m.refused for m in ms.merged))
         res.sanity = sanity(ms, system, op.q)
         lam, lam_log, A_c = _eigs_mujoco(ms, system, op, loops)
         if not loops:
@@ -280,139 +333,22 @@ def validate(scene, name: str | None = None) -> Validation:
         failures.append(f"rigid modes {res.rigid_error:.1e} > {res.rigid_tol:.1e}")
     if failures:
         res.status, res.reason = "FAIL", "; ".join(failures)
+    if picture if picture is not None else bool(scene.loops):
+        _render(res, ms, system, op)
     return res
 
 
-# ------------------------------------------------------------------------------------------------
-def write_report(res: Validation, folder: Path) -> None:
-    """``<name>.md`` and ``<name>.png`` (both eigenvalue sets in the complex plane), each
-    written atomically.
+def _render(res: Validation, ms, system, op) -> None:
+    """The MuJoCo scene at the operating point as a PNG (``res.picture``), or why not."""
+    from .mjcf import set_state
+    from .mjcf_picture import NoRendererError, render_png
 
-    Raises:
-        ModelFileError: a file cannot be written (it is left as it was).
-    """
-    import mujoco
-    import pinocchio as pin
-
-    lines = [f"# Validation of '{res.name}' against MuJoCo", "",
-             f"Verdict: **{res.status}**" + (f" — {res.reason}" if res.reason else ""), ""]
-    if res.pinlin_eigs is None:
-        write_text_atomic(folder / f"{res.name}.md", "\n".join(lines) + "\n")
-        return
-    lines += [
-        f"pin {pin.__version__}, MuJoCo {mujoco.__version__}, {platform.machine()}. "
-        f"Reproduce: `pinlin validate {res.name}`.",
-        "",
-        f"- Effects in play: {', '.join(res.effects) or 'none'}; everything else is off in "
-        "the MuJoCo scene (contacts, joint limits, friction loss, actuator clamps, equalities "
-        "other than the scene's loops and mimic couplings).",
-        f"- nv = {res.nv}; MuJoCo Euler, dt = {res.dt:.3g} s; "
-        + ("centered transition differences with eps = "
-           f"{EPS_LOOP:g}; loop equalities with time constant 2 dt, impedance 0.9999 and 0.999 "
-           "(extrapolated to 1)" if "loops" in res.effects else
-           f"centered transition differences at eps = {EPS_OPEN:g} and {2 * EPS_OPEN:g}, "
-           "Richardson-combined") + ".",
-        "- Sanity at q0 (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in res.sanity.items()),
-        "- Matrix error max |A_mj - A| / max |A|: "
-        + (f"{res.matrix_error:.2e} (tolerance {MATRIX_TOL:.0e})" if res.matrix_error is not None
-           else "not compared (loops: MuJoCo's state is the dependent coordinates)"),
-        f"- Largest relative eigenvalue error, non-rigid: {res.eig_error:.2e} (tolerance "
-        f"{EIG_TOL:.0e})" + (f"; raw at d = 0.9999, before extrapolation to d = 1: "
-                             f"{res.eig_error_raw:.2e}" if "loops" in res.effects
-                             or res.eig_error_raw != res.eig_error else ""),
-        f"- Rigid and near-rigid modes (|lam| <= {res.rigid_tol:.1e}): largest |lam_mj - lam| "
-        f"{res.rigid_error:.1e} (tolerance {res.rigid_tol:.1e})",
-        f"- Set aside: {len(res.set_aside)} MuJoCo soft-constraint eigenvalues"
-        + (f" (|lam| from {min(abs(x) for x in res.set_aside):.3g} to "
-           f"{max(abs(x) for x in res.set_aside):.3g} 1/s)" if res.set_aside else ""),
-        "",
-        f"- Eigenvalues whose tolerance is set by their condition number (MuJoCo's difference "
-        f"error times kappa exceeds 1e-6): {res.conditioning_limited}",
-        "",
-        "| # | pinlin eigenvalue [1/s] | MuJoCo, continuous A | error (rel.; abs. for rigid) "
-        "| tolerance | MuJoCo log(z)/dt (for reference) | kind |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for k, (a, b, c, e, kind, tol) in enumerate(res.table, start=1):
-        lines.append(f"| {k} | {a.real:+.9g} {a.imag:+.9g}j | {b.real:+.9g} {b.imag:+.9g}j | "
-                     f"{e:.1e} | {tol:.1e} | {c.real:+.7g} {c.imag:+.7g}j | {kind} |")
-    lines += ["", f"![eigenvalues]({res.name}.png)", ""]
-    _plot(res, folder / f"{res.name}.png")
-    write_text_atomic(folder / f"{res.name}.md", "\n".join(lines) + "\n")
-
-
-def _plot(res: Validation, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 4.5))
-    ours = np.asarray(res.pinlin_eigs)
-    mj = np.array([row[1] for row in res.table])
-    ax.plot(ours.real, ours.imag, "o", mfc="none", ms=9, label="pinlin")
-    ax.plot(mj.real, mj.imag, "x", ms=7, label="MuJoCo (matched)")
-    ax.set_xlabel("Re [1/s]")
-    ax.set_ylabel("Im [1/s]")
-    ax.set_title(f"{res.name}: {res.status}")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
+    set_state(ms, system, op.q, op.v, np.zeros(system.nv))
     try:
-        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=70))
-    finally:
-        plt.close(fig)
-
-
-def _row(r: Validation) -> str:
-    mat = f"{r.matrix_error:.1e}" if r.matrix_error is not None else "-"
-    eig = f"{r.eig_error:.1e}" if np.isfinite(r.eig_error) else "-"
-    rig = f"{r.rigid_error:.1e}" if np.isfinite(r.rigid_error) else "-"
-    note = r.reason[:160].replace("|", "\\|")
-    return f"| [{r.name}]({r.name}.md) | {r.status} | {mat} | {eig} | {rig} | {note} |"
-
-
-def _index_rows(path: Path) -> dict[str, str]:
-    """Rows of an existing index, by system name, in file order (empty if there is none)."""
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return {}
-    rows = {}
-    for line in text.splitlines():
-        m = _INDEX_ROW.match(line)
-        if m:
-            rows[m["name"]] = line
-    return rows
-
-
-def write_summary(results: list[Validation], folder: Path, command: str,
-                  merge: bool = True) -> None:
-    """The index ``README.md``: one row per system, written atomically.
-
-    With ``merge``, the rows of an existing index for systems not in ``results`` are kept
-    (in place; new systems are appended), so that validating one system does not drop the
-    others from the index.
-    """
-    path = folder / "README.md"
-    rows = _index_rows(path) if merge else {}
-    done = {r.name for r in results}
-    kept = [name for name in rows if name not in done]
-    for r in results:
-        rows[r.name] = _row(r)
-    statuses = [m["status"] for m in (_INDEX_ROW.match(line) for line in rows.values()) if m]
-    note = (f" Rows of {len(kept)} other systems are kept from earlier runs."
-            if kept else "")
-    lines = [INDEX_MARKER, "",
-             f"Produced by `{command}`.{note} One line per system: pinlin's linear model "
-             "against MuJoCo (see [pinlin/validate.py](../../pinlin/validate.py) for the method "
-             "and tolerances). Other reports here: [accuracy_vs_time.md](accuracy_vs_time.md), "
-             "[bench_linearize.md](bench_linearize.md).", "",
-             "| system | verdict | matrix error | eigenvalue error | rigid | note |",
-             "|---|---|---|---|---|---|", *rows.values()]
-    counts = {s: statuses.count(s) for s in sorted(set(statuses))}
-    lines += ["", "Totals: " + ", ".join(f"{k}: {v}" for k, v in counts.items()), ""]
-    write_text_atomic(path, "\n".join(lines))
+        res.picture = render_png(ms.spec.to_xml(), ms.data.qpos)
+    except NoRendererError as exc:
+        res.picture_note = (f"no OpenGL backend could render here ({exc}); set MUJOCO_GL to a "
+                            "working backend (egl, osmesa or glfw) and run again")
 
 
 def targets(all_systems: bool, names: list[str]) -> list[str]:
@@ -434,7 +370,7 @@ def report_name(target: str) -> str:
 
 def run(names: Sequence[str], out_dir: str | Path = "validation/reports", progress: bool = True,
         command: str = "pinlin validate", summary: bool = True, *, strict: bool = True,
-        merge: bool = True) -> list[Validation]:
+        merge: bool = True, announce: bool = True) -> list[Validation]:
     """Validate ``names`` (scene files, bundled scenes, robots), write reports; returns them.
 
     Everything that can be refused is refused before any work and before anything is
@@ -442,7 +378,9 @@ def run(names: Sequence[str], out_dir: str | Path = "validation/reports", progre
     existing report or index that pinlin did not write and, with ``strict``, a target that
     names nothing (or a scene that does not build). Without ``strict`` (``--all``) such a
     target gets a "pinlin refuses" row instead. Reports are written atomically as each
-    system is done; the index merges into an existing one (``merge``).
+    system is done; the index merges into an existing one (``merge``: the rows of systems not
+    run are kept and the totals count every row). With ``announce``, one line on stdout says
+    where the reports and the index were written and the index's totals.
 
     Raises:
         ArgumentError: ``names`` is not a list of names, or two give the same report name.
@@ -470,8 +408,9 @@ def run(names: Sequence[str], out_dir: str | Path = "validation/reports", progre
     for key in by_report:  # never replace a file pinlin did not write
         check_ours(folder / f"{key}.md", REPORT_MARKER)
         check_ours(folder / f"{key}.png", PNG_MARKER)
+        check_ours(folder / picture_name(key), PNG_MARKER)
     if summary:
-        check_ours(folder / "README.md", INDEX_MARKER)
+        check_ours(folder / INDEX_NAME, INDEX_MARKER)
     scenes: dict[str, object] = {}
     for target in names:
         try:
@@ -500,6 +439,11 @@ def run(names: Sequence[str], out_dir: str | Path = "validation/reports", progre
             bar.step(f"{res.name}: {res.status}")
     finally:
         bar.close()
+    where = f"{len(results)} report{'s' * (len(results) != 1)} written to {folder}"
     if summary:
-        write_summary(results, folder, command, merge=merge)
+        counts = write_summary(results, folder, command, merge=merge)
+        where += (f"; index {folder / INDEX_NAME}: {sum(counts.values())} systems ("
+                  + ", ".join(f"{k}: {v}" for k, v in counts.items()) + ")")
+    if announce:
+        print(where)
     return results

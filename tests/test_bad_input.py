@@ -97,7 +97,7 @@ BAD_SCENES = {
                       {"robot__urdf": PENDULUM.replace('value="1.0"', 'value="-2.0"')},
                       "mass must be a finite number >= 0"),
     "bad_inertia": ('urdf = "robot.urdf"\n',
-                    {"robot__urdf": PENDULUM.replace('ixx="0"', 'ixx="-1"')},
+                    {"robot__urdf": PENDULUM.replace('ixx="0.001"', 'ixx="-1"')},
                     "not positive semi-definite"),
     "spring_without_stiffness": ('urdf = "robot.urdf"\n[effects]\nsprings = { hinge = '
                                  '{ rest = 0.1 } }\n', GOOD_URDF, "stiffness': missing"),
@@ -135,7 +135,8 @@ BAD_SCENES = {
     "u_with_solve_inputs": ('urdf = "robot.urdf"\n[operating_point]\nu = { hinge = 1.0 }\n',
                             GOOD_URDF, "inputs are given only with solve"),
     "massless_joint": ('urdf = "robot.urdf"\n',
-                       {"robot__urdf": PENDULUM.replace('value="1.0"', 'value="0.0"')},
+                       {"robot__urdf": PENDULUM.replace('value="1.0"', 'value="0.0"')
+                                       .replace('"0.001"', '"0"')},
                        "carries no inertia"),
 }
 

@@ -52,4 +52,5 @@ def test_robots_lists_the_loadable_ones(capfd):
 def test_console_script_runs():
     res = subprocess.run([sys.executable, "-m", "pinlin.cli", "linearize", "pendulum"],
                          capture_output=True, text=True, check=False)
-    assert res.returncode == 0 and f"{np.sqrt(9.81):.6g}j" in res.stdout   # wn = sqrt(g / L)
+    # wn = sqrt(m g L / J), J = m L^2 + 2/5 m r^2 = 1.001 kg*m^2 (a 1 kg sphere, r = 0.05 m)
+    assert res.returncode == 0 and f"{np.sqrt(9.81 / 1.001):.6g}j" in res.stdout

@@ -16,12 +16,19 @@ I1, I2 = M1 * L1**2 / 12, M2 * L2**2 / 12
 
 
 def test_pendulum_is_textbook():
+    """urdf/pendulum.urdf: a solid sphere of mass m = 1 kg and radius r = 0.05 m, its centre
+    L = 1 m below a hinge (a point mass has no MuJoCo counterpart). About the hinge its inertia
+    is J = m L^2 + 2/5 m r^2 = 1 + 0.001 = 1.001 kg*m^2 (parallel-axis theorem on the sphere's
+    2/5 m r^2); gravity's torque is -m g L sin(q). Linearized at q = 0, J q'' = -m g L q + u:
+    A = [[0, 1], [-m g L / J, 0]], B = [[0], [1 / J]], omega_n = sqrt(m g L / J), which is the
+    textbook point mass -g/L for r -> 0."""
+    m, L, r = 1.0, 1.0, 0.05
+    J = m * L**2 + 0.4 * m * r**2
     model = pinlin.linearize(URDF_DIR / "pendulum.toml")
-    # Point mass m = 1 kg at L = 1 m: A = [[0, 1], [-g/L, 0]], B = [[0], [1/(m L^2)]].
-    np.testing.assert_allclose(model.A, [[0.0, 1.0], [-G / 1.0, 0.0]], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(model.B, [[0.0], [1.0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(model.A, [[0.0, 1.0], [-m * G * L / J, 0.0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(model.B, [[0.0], [1.0 / J]], rtol=0, atol=1e-12)
     modes = pinlin.modal(model)
-    np.testing.assert_allclose(modes.wn, [np.sqrt(G)] * 2, rtol=1e-12)
+    np.testing.assert_allclose(modes.wn, [np.sqrt(m * G * L / J)] * 2, rtol=1e-12)
     assert model.output_names == ("q:hinge", "v:hinge", "p:tip[x]", "p:tip[y]", "p:tip[z]")
     np.testing.assert_allclose(model.operating_point.y[2:], [0.0, 0.0, -1.0], rtol=0, atol=1e-15)
 
@@ -83,9 +90,10 @@ def test_armature_adds_to_the_mass_diagonal_only_when_called_for():
     plain = pinlin.linearize(pinlin.Scene.from_urdf(URDF_DIR / "pendulum.urdf", effects=base))
     geared = pinlin.linearize(pinlin.Scene.from_urdf(
         URDF_DIR / "pendulum.urdf", effects={**base, "armature": {"hinge": 0.25}}))
-    assert plain.M[0, 0] == pytest.approx(1.0, abs=1e-15)
-    assert geared.M[0, 0] == pytest.approx(1.25, abs=1e-15)
-    assert geared.A[1, 0] == pytest.approx(-G / 1.25, rel=1e-13)
+    # The bob's J = m L^2 + 2/5 m r^2 = 1.001 kg*m^2 (see test_pendulum_is_textbook).
+    assert plain.M[0, 0] == pytest.approx(1.001, abs=1e-15)
+    assert geared.M[0, 0] == pytest.approx(1.251, abs=1e-15)
+    assert geared.A[1, 0] == pytest.approx(-G / 1.251, rel=1e-13)
 
 
 def test_no_gravity_unless_listed():

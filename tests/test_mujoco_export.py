@@ -1,0 +1,207 @@
+"""The MuJoCo scene beyond the dynamics: links merged where MuJoCo refuses a URDF link's inertia
+alone, visual-only geoms that change nothing, pictures of the mechanisms, ``validate`` taking
+names and paths, and reports that merge into existing ones (validation index and bench)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import struct
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import REPO, URDF_DIR
+
+import pinlin
+from pinlin import mjcf
+from pinlin.bench import check_scene
+from pinlin.cli import main
+from pinlin.exceptions import ArgumentError, UnknownRobotError
+from pinlin.mjcf_merge import combine
+from pinlin.mjcf_visual import VISUAL_GROUP
+from pinlin.validate import run, sanity, validate
+
+ROW = re.compile(r"^\| \[(?P<name>[^\]]+)\]\((?P=name)\.md\) \| (?P<status>[^|]*?) \|")
+
+
+def test_parallel_axis_theorem_by_hand():
+    """Two 1 kg point masses at x = +-1 m and a 2 kg sphere-like part at the origin with
+    I = 0.1 E: m = 4 kg, c = 0, I = diag(0.1, 2.1, 2.1) (each point mass adds m x^2 about y
+    and z). Off-centre: a 1 kg point at (1, 2, 0) alone about its own centre is zero; with a
+    1 kg point at the origin, c = (0.5, 1, 0) and I = sum m (|d|^2 E - d d^T)."""
+    point = (1.0, np.zeros(3), np.zeros((3, 3)))
+    m, c, inertia = combine([(1.0, np.array([1.0, 0, 0]), np.zeros((3, 3))),
+                             (1.0, np.array([-1.0, 0, 0]), np.zeros((3, 3))),
+                             (2.0, np.zeros(3), 0.1 * np.eye(3))])
+    assert m == 4.0 and np.all(c == 0.0)
+    np.testing.assert_allclose(inertia, np.diag([0.1, 2.1, 2.1]), rtol=0, atol=1e-15)
+    m, c, inertia = combine([point, (1.0, np.array([1.0, 2.0, 0.0]), np.zeros((3, 3)))])
+    d = np.array([0.5, 1.0, 0.0])
+    expected = 2 * (d @ d * np.eye(3) - np.outer(d, d))
+    np.testing.assert_allclose(c, d, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(inertia, expected, rtol=0, atol=1e-15)
+
+
+def test_refused_robot_passes_with_merged_links_named(tmp_path):
+    """anymal's placeholder 'base' (1e-6 kg, an inertia with zero eigenvalues) used to make
+    MuJoCo refuse the robot; merged with its fixed children as Pinocchio merges them, the
+    robot passes, and its report and index row name the merged links. A robot MuJoCo accepts
+    as it is keeps MuJoCo's own import (nothing merged)."""
+    results = run(["anymal", "ur5"], tmp_path, progress=False, announce=False)
+    anymal, ur5 = results
+    assert anymal.passed, anymal.reason
+    assert any(m.startswith("base_inertia -> base") for m in anymal.merged)
+    assert anymal.sanity["total mass"] <= 1e-9 and anymal.sanity["mass matrix"] <= 1e-9
+    assert ur5.passed and ur5.merged == []
+    assert mjcf.build(pinlin.Scene.from_robot("ur5").system).merged == ()
+    report = (tmp_path / "anymal.md").read_text()
+    assert "base_inertia -> base" in report and "parallel-axis theorem" in report
+    index = (tmp_path / "README.md").read_text()
+    row = next(line for line in index.splitlines() if line.startswith("| [anymal]"))
+    assert "| pass |" in row and "base_inertia -> base" in row
+
+
+def test_unrepresentable_body_says_what_to_change():
+    """human's spherical joints are chains of revolute joints through massless links: MuJoCo
+    cannot represent a moving massless body, and the refusal says which link and what to do."""
+    res = validate("human")
+    assert res.status == "MuJoCo refuses"
+    for words in ("link 'left_upperleg_virtual' needs a physical <inertial>",
+                  "joint 'left_hip_Z' locked", "mass 0 kg", "mjMINVAL"):
+        assert words in res.reason
+
+
+@pytest.mark.parametrize("target", ["solo12", "four_bar"])
+def test_visual_geoms_change_neither_mass_matrix_nor_gravity(target):
+    """A floating robot (rotated base) and a mechanism: MuJoCo's M, bias forces and body
+    inertials are bitwise the same with and without the visual geoms, which have no contacts
+    and no mass; the sanity check against Pinocchio passes with them."""
+    scene, _ = check_scene(target)
+    system = scene.system
+    op = pinlin.linearize(scene).operating_point
+    shown, bare = mjcf.build(system), mjcf.build(system, visual=False)
+    assert bare.model.ngeom == 0 and shown.model.ngeom > system.model.nbodies // 2
+    m = shown.model
+    assert np.all(m.geom_contype == 0) and np.all(m.geom_conaffinity == 0)
+    assert np.all(m.geom_group == VISUAL_GROUP)
+    out = []
+    for ms in (shown, bare):
+        mjcf.set_state(ms, system, op.q, np.zeros(system.nv), np.zeros(system.nv))
+        M = np.zeros((ms.model.nv, ms.model.nv))
+        mujoco.mj_fullM(ms.model, ms.data, M)
+        out.append((M, ms.data.qfrc_bias.copy(), ms.model.body_mass.copy(),
+                    ms.model.body_inertia.copy(), ms.model.body_ipos.copy()))
+    for a, b in zip(*out, strict=True):
+        assert np.array_equal(a, b)
+    assert max(sanity(shown, system, op.q).values()) <= 1e-9
+
+
+def _png_size(data: bytes) -> tuple[int, int]:
+    assert data.startswith(b"\x89PNG\r\n\x1a\n") and data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def test_mechanism_report_has_a_picture_or_says_why_not(tmp_path):
+    """four_bar's report shows the MuJoCo scene (320 x 240 PNG) at the operating point, or, on
+    a machine without an OpenGL backend, says that none rendered and how to choose one."""
+    res = run(["four_bar"], tmp_path, progress=False, announce=False)[0]
+    assert res.passed, res.reason
+    report = (tmp_path / "four_bar.md").read_text()
+    picture = tmp_path / "four_bar_mujoco.png"
+    if res.picture is None:
+        assert "MUJOCO_GL" in res.picture_note and "No picture of the MuJoCo scene" in report
+        assert not picture.exists()
+    else:
+        assert _png_size(picture.read_bytes()) == (320, 240)
+        assert "![MuJoCo scene](four_bar_mujoco.png)" in report
+    plain = run(["double_pendulum"], tmp_path, progress=False, announce=False)[0]
+    assert plain.picture is None and not (tmp_path / "double_pendulum_mujoco.png").exists()
+
+
+def test_png_encoder_round_trips():
+    import matplotlib.image
+
+    from pinlin.mjcf_picture import encode_png
+
+    rgb = np.random.default_rng(1).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    data = encode_png(rgb)
+    assert _png_size(data) == (7, 5)
+    import io
+
+    back = matplotlib.image.imread(io.BytesIO(data), format="png")
+    assert np.array_equal(np.round(back[..., :3] * 255).astype(np.uint8), rgb)
+
+
+def test_validate_takes_names_paths_and_systems():
+    """Like pinlin.linearize: a bundled scene or robot name, a scene file as str or Path, a
+    Scene or its System; anything else is an ArgumentError, an unknown name the usual error."""
+    by_name = validate("pendulum")
+    assert by_name.passed and by_name.name == "pendulum", by_name.reason
+    for target in (URDF_DIR / "pendulum.toml", str(URDF_DIR / "pendulum.toml")):
+        res = validate(target)
+        assert res.passed and res.name == "pendulum"
+    scene = pinlin.Scene.load(URDF_DIR / "pendulum.toml")
+    assert validate(scene.system, name="p2").name == "p2"
+    assert validate("ur5").passed
+    with pytest.raises(ArgumentError, match="scene"):
+        validate(3)
+    with pytest.raises(ArgumentError, match="name"):
+        validate("pendulum", name=5)
+    with pytest.raises(UnknownRobotError):
+        validate("robocop")
+
+
+def _rows(text: str) -> dict[str, str]:
+    return {m["name"]: line for line in text.splitlines() if (m := ROW.match(line))}
+
+
+def test_validate_one_system_into_the_committed_reports_keeps_every_other_row(tmp_path, capfd):
+    """pinlin validate z1 --out-dir <copy of validation/reports>: the z1 row is replaced (here
+    a stale FAIL planted in the copy), every other row is kept byte for byte, the totals count
+    every row again, and the command says where it wrote."""
+    out = tmp_path / "reports"
+    shutil.copytree(REPO / "validation" / "reports", out)
+    index = out / "README.md"
+    before = _rows(index.read_text())
+    assert "z1" in before and len(before) > 60
+    index.write_text(index.read_text().replace(before["z1"], "| [z1](z1.md) | FAIL | - | - | - "
+                                                             "| planted |"))
+    capfd.readouterr()
+    assert main(["validate", "z1", "--out-dir", str(out), "--no-progress"]) == 0
+    stdout = capfd.readouterr().out
+    assert str(out) in stdout and str(index) in stdout
+    text = index.read_text()
+    after = _rows(text)
+    assert list(after) == list(before)
+    assert after["z1"].startswith("| [z1](z1.md) | pass |")
+    assert {k: v for k, v in after.items() if k != "z1"} == \
+        {k: v for k, v in before.items() if k != "z1"}
+    statuses = [ROW.match(line)["status"] for line in after.values()]
+    totals = ", ".join(f"{s}: {statuses.count(s)}" for s in sorted(set(statuses)))
+    assert f"Totals: {totals} ({len(after)} systems)" in text
+
+
+def test_bench_one_system_into_an_existing_report_keeps_the_others(tmp_path):
+    """pinlin bench ur5 into a copy of the committed accuracy_vs_time.md: the ur5 headline row
+    and sweep are new, every other system's row and sweep section is kept as it was, the
+    humanoid's targets too, and the header says which rows come from an earlier run."""
+    from pinlin.bench import read_report
+
+    out = tmp_path / "reports"
+    out.mkdir()
+    shutil.copy(REPO / "validation" / "reports" / "accuracy_vs_time.md", out)
+    shutil.copytree(REPO / "validation" / "reports" / "accuracy_vs_time",
+                    out / "accuracy_vs_time")
+    rows, targets, sweeps = read_report(out / "accuracy_vs_time.md")
+    assert "ur5" in rows and len(rows) >= 3 and targets
+    assert main(["bench", "ur5", "--repeats", "1", "--out-dir", str(out), "--no-progress"]) == 0
+    rows2, targets2, sweeps2 = read_report(out / "accuracy_vs_time.md")
+    assert list(rows2) == list(rows) and targets2 == targets
+    for name in rows:
+        if name != "ur5":
+            assert rows2[name] == rows[name] and sweeps2[name] == sweeps[name]
+    text = (out / "accuracy_vs_time.md").read_text()
+    assert "Produced by `pinlin bench ur5 --repeats 1`" in text
+    kept = [n for n in rows if n != "ur5"]
+    assert f"Rows of {', '.join(kept)} are kept from an earlier run" in text
