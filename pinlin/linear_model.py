@@ -2,8 +2,12 @@
 
 First order (Rowell's conventions)::
 
-    x' = A x + B u + E u'
+    x' = A x + B u + E u'            (+ f0 away from an equilibrium)
     y  = C x + D u + F u'
+
+x and u are deviations from the operating point; f0 is x' there (the drift: [v0; a0] for a
+mechanical model at a moving state), zero or absent at an equilibrium. A discrete model
+(:meth:`LinearModel.discretize`, ``dt`` > 0) reads x[k+1] = f0 + A x[k] + B u[k].
 
 Second order (mechanical systems, x = [dq; v])::
 
@@ -148,6 +152,10 @@ class LinearModel:
             None otherwise.
         info: Metadata: formulation, derivatives, effects in play, notes, whether velocity
             terms are present (``velocity_terms``), error estimates.
+        f0: The drift at the operating point (size n): x' = f0 + A x + B u (discrete: the
+            state change over one step), or None at an equilibrium.
+        dt: Sample time [s] of a discrete model; 0 for a continuous one (python-control's
+            convention).
     """
 
     A: np.ndarray
@@ -167,6 +175,8 @@ class LinearModel:
     G: np.ndarray | None = None
     name: str = ""
     info: Mapping[str, Any] = field(default_factory=dict)
+    f0: np.ndarray | None = None
+    dt: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
@@ -201,6 +211,16 @@ class LinearModel:
             if G.ndim != 2 or 2 * G.shape[1] != n:
                 raise ShapeError(f"G must have n/2 = {n // 2} columns, got shape {G.shape}")
             object.__setattr__(self, "G", _matrix("G", G, G.shape))
+        if self.f0 is not None:
+            f0 = _matrix("f0", np.reshape(np.asarray(self.f0, dtype=float), (-1, 1))
+                         if np.size(self.f0) == n else self.f0, (n, 1))
+            object.__setattr__(self, "f0", f0.reshape(n))
+        dt = self.dt
+        if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
+                or not (math.isfinite(dt) and dt >= 0):
+            raise ArgumentError("dt", f"expected a sample time >= 0 [s] (0: continuous), got "
+                                      f"{dt!r}")
+        object.__setattr__(self, "dt", float(dt))
         _check_finite(self.__dict__, self.name)
         if self.operating_point is not None and not isinstance(self.operating_point,
                                                                 OperatingPoint):
@@ -222,6 +242,8 @@ class LinearModel:
             ModelError: repeated names, or NaN or inf in a matrix (naming it and the model).
         """
         model = fields["name"]
+        fields.setdefault("f0", None)
+        fields.setdefault("dt", 0.0)
         for k in NAME_FIELDS:
             names = fields[k]
             if not (type(names) is tuple and _distinct(names)):
@@ -248,8 +270,13 @@ class LinearModel:
     def has_second_order(self) -> bool:
         return self.M is not None
 
+    @property
+    def is_discrete(self) -> bool:
+        return self.dt > 0
+
     def __repr__(self) -> str:
         extra = " with E" if self.E is not None else ""
+        extra += f", discrete dt = {self.dt:g} s" if self.dt else ""
         return (f"LinearModel({self.name!r}: {self.n_states} states, {self.n_inputs} inputs, "
                 f"{self.n_outputs} outputs{extra})")
 
@@ -269,6 +296,27 @@ class LinearModel:
                            self.output_names, F=F, name=self.name,
                            info={**self.info, "standard_form": "x' = x - E u"})
 
+    def discretize(self, dt: float, method: str = "zoh") -> LinearModel:
+        """The discrete model over sample time ``dt`` [s]: x[k+1] = f0_d + A_d x[k] + B_d u[k],
+        y[k] = C x[k] + D u[k] (see :mod:`pinlin.discretization` for the methods).
+
+        Args:
+            dt: Sample time [s], > 0.
+            method: ``"zoh"`` (input held over the step; exact for the linear model, by the
+                matrix exponential of an augmented matrix) or ``"euler"`` (the semi-implicit
+                Euler step of MuJoCo and most simulators: v first, then dq with the new v;
+                mechanical models in x = [dq; v] only).
+
+        Raises:
+            ArgumentError: ``dt`` not a positive finite number, an unknown method, a model
+                that is already discrete, or ``"euler"`` on a model without the [dq; v]
+                structure.
+            ModelError: input-derivative terms (E): discretize :meth:`standard_form` instead.
+        """
+        from .discretization import discretize
+
+        return discretize(self, dt, method)
+
     def to_control(self):
         """python-control ``StateSpace`` with the signal names (E folded by
         :meth:`standard_form`). Needs the ``control`` extra."""
@@ -277,17 +325,26 @@ class LinearModel:
         except ImportError:
             raise PinlinError("python-control is not installed: pip install 'pinlin[control]'") \
                 from None
+        if self.f0 is not None and np.any(self.f0):
+            raise PinlinError(f"model '{self.name}' has a drift f0 (x' = f0 + A x + B u, not an "
+                              "equilibrium): a python-control StateSpace has no such term; use "
+                              "model.A, model.B and model.f0")
         model = self.standard_form()
         if model.F is not None and np.any(model.F):
             raise PinlinError(f"model '{self.name}': outputs with an input-derivative term "
                               "(F u') have no python-control StateSpace")
-        return control.ss(model.A, model.B, model.C, model.D, name=self.name or None,
+        return control.ss(model.A, model.B, model.C, model.D, self.dt, name=self.name or None,
                           states=list(model.state_names), inputs=list(model.input_names),
                           outputs=list(model.output_names))
 
     # ----------------------------------------------------------------------------------------
     def _arrays(self) -> dict[str, np.ndarray]:
-        return {k: getattr(self, k) for k in MATRICES if getattr(self, k) is not None}
+        """The matrices present, by name; the vector f0 as a 1 x n matrix (files hold 2-D
+        arrays only)."""
+        out = {k: getattr(self, k) for k in MATRICES if getattr(self, k) is not None}
+        if "f0" in out:
+            out["f0"] = out["f0"].reshape(1, -1)
+        return out
 
     def save(self, path: str | Path) -> Path:
         """Write the model; the format follows the suffix: ``.npz``, ``.mat`` or ``.json``.
@@ -310,7 +367,7 @@ class LinearModel:
     def _serialized(self, path: Path, fmt: str) -> bytes:
         """The file's content in format ``fmt`` (in memory: nothing touches the disk yet)."""
         return serialize(path, fmt, self._arrays(), {k: getattr(self, k) for k in NAME_FIELDS},
-                         self.name, self.info, self.operating_point)
+                         self.name, self.info, self.operating_point, self.dt)
 
     @classmethod
     def load(cls, path: str | Path) -> LinearModel:

@@ -22,7 +22,12 @@ import pinocchio as pin
 
 from .conditioning import AccuracyWarning, refuse_condition, singular_to_working_precision
 from .derivatives import BACKENDS, resolve_steps
-from .equilibrium import ConstrainedPoint, require_equilibrium_support, solve_constrained
+from .equilibrium import (
+    ConstrainedPoint,
+    input_vector,
+    require_equilibrium_support,
+    solve_constrained,
+)
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .formulations import (
     BASES,
@@ -34,8 +39,14 @@ from .formulations import (
 )
 from .formulations.constrained import penalty_parameters
 from .linear_model import LinearModel
-from .operating_point import OperatingPoint, configuration, hold_at_rest
-from .scene import POSITION_LIMIT, Scene
+from .operating_point import (
+    OperatingPoint,
+    at_state,
+    configuration,
+    hold_at_rest,
+    velocity_vector,
+)
+from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
 
 #: A numerical model whose estimated relative error of A exceeds this gets an AccuracyWarning
@@ -94,13 +105,55 @@ def _configuration(system: System, q: object) -> np.ndarray:
     return q0
 
 
+def _given_state(system: System, v: object, u: object) -> tuple[np.ndarray, np.ndarray] | None:
+    """(v0, u0) when the state is given rather than solved for: ``v`` or ``u`` passed, or the
+    scene's ``solve = "none"`` (its ``v`` and ``u`` tables, zeros elsewhere); else None."""
+    spec = system.scene.operating_point
+    if v is None and u is None and spec.solve != "none":
+        return None
+    v0 = velocity_vector(system, spec.v) if v is None else _vector("v", v, system.nv,
+                                                                   "velocities")
+    if u is None:
+        u0 = input_vector(system, spec.u) if spec.solve != "inputs" else \
+            np.zeros(len(system.actuated))
+    else:
+        u0 = _vector("u", u, len(system.actuated), "inputs")
+    return v0, u0
+
+
+def _vector(name: str, value: object, size: int, what: str) -> np.ndarray:
+    """A finite vector of ``size`` numbers, or an ArgumentError naming ``name``."""
+    try:
+        out = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentError(name, f"expected {size} numbers ({what}), got {value!r:.80}") \
+            from None
+    if out.shape != (size,):
+        raise ArgumentError(name, f"expected {size} numbers ({what}), got shape {out.shape}")
+    if not np.all(np.isfinite(out)) or np.abs(out).max(initial=0.0) > COEFFICIENT_LIMIT:
+        raise ArgumentError(name, f"expected finite {what} within {COEFFICIENT_LIMIT:g}, got "
+                                  f"{value!r:.80}")
+    return out
+
+
 def resolve_operating_point(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool,
                             constrained: bool = False, mass_inverse: np.ndarray | None = None,
-                            allow_ill_conditioned: bool = False
+                            allow_ill_conditioned: bool = False,
+                            state: tuple[np.ndarray, np.ndarray] | None = None
                             ) -> tuple[OperatingPoint, ConstrainedPoint | None]:
     """The operating point about q0 and, where the constrained path ran, what the constrained
     formulations need (``constrained``: take that path even for an open chain, as the penalty
-    and canonical formulations need its constraint point)."""
+    and canonical formulations need its constraint point). ``state`` = (v0, u0): the state is
+    given, nothing is solved for (:func:`pinlin.operating_point.at_state`)."""
+    if state is not None:
+        if system.constraints or constrained:
+            raise ModelError(f"scene '{system.scene.name}': a given (moving) state is "
+                             "linearized in the independent formulation of an open chain; "
+                             "loops, mimic couplings and the penalty and canonical "
+                             "formulations at a given state are not supported yet")
+        if mass_inverse is None:
+            mass_inverse = system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned)
+        return at_state(system, q0, *state, mass_inverse=mass_inverse), None
     if system.constraints or constrained or system.scene.operating_point.solve != "inputs":
         require_equilibrium_support(system)
         return solve_constrained(system, q0, allow_non_equilibrium=allow_non_equilibrium,
@@ -111,11 +164,13 @@ def resolve_operating_point(system: System, q0: np.ndarray, *, allow_non_equilib
 
 
 def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None = None,
+                    v: np.ndarray | None = None, u: np.ndarray | None = None,
                     allow_non_equilibrium: bool | None = None,
                     mass_inverse: np.ndarray | None = None,
                     allow_ill_conditioned: bool = False) -> OperatingPoint:
     """The operating point the scene asks for, resolved exactly as :func:`linearize` does
-    (loops assembled, constraint forces solved; ``q`` replaces the whole configuration).
+    (loops assembled, constraint forces solved; ``q`` replaces the whole configuration; ``v``
+    and ``u`` give the state, as for :func:`linearize`).
 
     ``mass_inverse`` is M(q0)^-1 when the caller has it already; ``allow_ill_conditioned`` as
     for :func:`linearize` (M^-1 is needed off equilibrium, for the acceleration a0).
@@ -124,10 +179,12 @@ def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None 
     allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
     ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     q0 = _configuration(system, q)
+    state = _given_state(system, v, u)
     if allow is None:
         allow = system.scene.operating_point.allow_non_equilibrium
     return resolve_operating_point(system, q0, allow_non_equilibrium=allow,
-                                   mass_inverse=mass_inverse, allow_ill_conditioned=ill)[0]
+                                   mass_inverse=mass_inverse, allow_ill_conditioned=ill,
+                                   state=state)[0]
 
 
 def _check_options(system: System, formulation: str, derivatives: str,
@@ -160,7 +217,8 @@ def _check_options(system: System, formulation: str, derivatives: str,
 
 def linearize(scene: Scene | System | str | Path, *, formulation: str = "independent",
               derivatives: str = "analytic", step: float | Mapping[str, float] | None = None,
-              q: np.ndarray | None = None, allow_non_equilibrium: bool | None = None,
+              q: np.ndarray | None = None, v: np.ndarray | None = None,
+              u: np.ndarray | None = None, allow_non_equilibrium: bool | None = None,
               basis: str | None = None, alpha: float | None = None, mu: float | None = None,
               omega: float | None = None, estimate_error: bool = True,
               allow_ill_conditioned: bool = False) -> LinearModel:
@@ -180,6 +238,11 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
             measured noise of the dynamics; fd3 at ~2x, fd5 at ~1.5x the cost). An estimate
             above 1e-6 gives an :class:`~pinlin.AccuracyWarning`.
         q: Full configuration (size nq) replacing the scene's operating point.
+        v, u: Velocity (nv) [rad/s or m/s] and inputs (nu) [N*m or N]: the state is taken as
+            given (as with the scene's ``solve = "none"``; the one not passed is the scene's,
+            else zero) and the model is affine, x' = f0 + A x + B u with f0 = [v0; a0]
+            (``model.f0``; x and u deviations from the state). Open chains, independent
+            formulation.
         allow_non_equilibrium: Override the scene's ``operating_point.allow_non_equilibrium``.
         basis: Independent coordinates of a constrained system (independent formulation only):
             ``"partitioned"`` (the independent joints z, the default) or ``"orthonormal"`` (an
@@ -212,10 +275,20 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
     system = _system(scene)
     _check_options(system, formulation, derivatives, step, basis, alpha, mu, omega)
     q0 = _configuration(system, q)
+    state = _given_state(system, v, u)
     if allow is None:
         allow = system.scene.operating_point.allow_non_equilibrium
     numeric = {"derivatives": derivatives, "step": step, "estimate_error": bool(estimate)}
-    if system.constraints or formulation != "independent" \
+    if state is not None:
+        if formulation != "independent" or system.constraints:
+            resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state,
+                                    constrained=True)  # raises: not supported yet
+        Minv = system.mass_inverse(q0, allow_ill_conditioned=ill)
+        op, _ = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
+                                        mass_inverse=Minv, allow_ill_conditioned=ill,
+                                        state=state)
+        model = linearize_independent(system, op, mass_inverse=Minv, **numeric)
+    elif system.constraints or formulation != "independent" \
             or system.scene.operating_point.solve != "inputs":
         op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
                                          constrained=True, allow_ill_conditioned=ill)

@@ -250,6 +250,10 @@ def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None =
     if not isinstance(model, LinearModel):
         raise ArgumentError("model", f"expected a pinlin LinearModel, got "
                                      f"{type(model).__name__}")
+    if model.dt:
+        raise ArgumentError("model", f"model '{model.name}' is discrete (dt = {model.dt:g} s): "
+                                     "its eigenvalues are z = exp(s dt), not frequencies; "
+                                     "analyse the continuous model")
     if not isinstance(method, str) or method not in METHODS:
         raise ArgumentError("method", f"unknown eigensolver method {method!r:.60}; expected one "
                                       f"of {', '.join(METHODS)}")

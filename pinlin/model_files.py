@@ -28,7 +28,7 @@ from .operating_point import OperatingPoint
 
 #: The matrices a model may have, in the order they are written: first order (A, B, C, D, E,
 #: F), second order (M, C_damp, K, Bu) and the constraint Jacobian G.
-MATRICES = ("A", "B", "C", "D", "E", "F", "M", "C_damp", "K", "Bu", "G")
+MATRICES = ("A", "B", "C", "D", "E", "F", "M", "C_damp", "K", "Bu", "G", "f0")
 #: The signal-name fields of a model.
 NAME_FIELDS = ("state_names", "input_names", "output_names")
 #: The file formats, by suffix.
@@ -52,7 +52,7 @@ def model_format(path: Path) -> str:
 
 def serialize(path: Path, fmt: str, arrays: Mapping[str, np.ndarray],
               names: Mapping[str, Sequence[str]], name: str, info: Mapping[str, Any],
-              operating_point: OperatingPoint | None) -> bytes:
+              operating_point: OperatingPoint | None, dt: float = 0.0) -> bytes:
     """A model file's content in format ``fmt``, in memory (nothing touches the disk).
 
     Args:
@@ -60,14 +60,15 @@ def serialize(path: Path, fmt: str, arrays: Mapping[str, np.ndarray],
         fmt: One of :data:`FORMATS`.
         arrays: The model's matrices present, by name (:data:`MATRICES`).
         names: The signal names, by field (:data:`NAME_FIELDS`).
-        name, info, operating_point: The metadata, written as JSON.
+        name, info, operating_point, dt: The metadata, written as JSON (``dt``: the sample
+            time [s] of a discrete model, 0 for a continuous one).
 
     Raises:
         ModelFileError: ``info`` or the operating point is not JSON data.
     """
     names = {k: list(v) for k, v in names.items()}
     try:
-        meta = jsonable({"name": name, "info": info,
+        meta = jsonable({"name": name, "info": info, "dt": float(dt),
                          "operating_point": (operating_point.as_dict()
                                              if operating_point is not None else None)})
         meta_text = json.dumps(meta)
@@ -158,7 +159,13 @@ def _model_fields(path: Path, doc: Mapping[str, Any], meta: Mapping[str, Any]
         point = _op_from_dict(op) if op else None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise _bad(path, f"field 'operating_point' is malformed: {_describe(exc)}") from None
-    return {**kwargs, **names, "operating_point": point, "name": name, "info": info}
+    dt = meta.get("dt", 0.0)
+    if isinstance(dt, bool) or not isinstance(dt, int | float):
+        raise _bad(path, f"field 'dt' must be a number of seconds, got {type(dt).__name__}")
+    if "f0" in kwargs:
+        kwargs["f0"] = kwargs["f0"].reshape(-1)
+    return {**kwargs, **names, "operating_point": point, "name": name, "info": info,
+            "dt": float(dt)}
 
 
 def _bad(path: Path, reason: str) -> ModelFileError:

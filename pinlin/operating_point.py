@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from .coordinates import FREE_FLYER, SPHERICAL, JointInfo, one_dof_configuration
+from .coordinates import FREE_FLYER, SPHERICAL, JointInfo, joint_vector, one_dof_configuration
 from .exceptions import EquilibriumError, SceneError
 from .system import System
 
@@ -196,3 +196,55 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
     return OperatingPoint.trusted(q=q0, v=np.zeros(nv), u=u0, a=a0, residual=residual,
                                   equilibrium=equilibrium, tolerance=tol, y=None, lam=None,
                                   notes=notes, lam_names=())
+
+
+def velocity_vector(system: System, values: Mapping[str, Any], fld: str = "operating_point.v"
+                    ) -> np.ndarray:
+    """Joint velocities from a {joint: value} table as a vector over the nv coordinates
+    [rad/s or m/s], zero for joints not named: a number for a 1-DoF joint, a list of the
+    joint's nv values otherwise (a free flyer: [vx, vy, vz, wx, wy, wz] in its own frame).
+
+    Raises:
+        SceneError: unknown joint, a number for a multi-DoF joint, or the wrong count.
+    """
+    for name, value in values.items():
+        j = system.joint(name, f"{fld}.{name}")
+        if not isinstance(value, tuple) and j.nv != 1:
+            raise SceneError(system.scene.source, f"{fld}.{name}",
+                             f"joint '{name}' ({j.kind}) has {j.nv} velocity coordinates; "
+                             f"give a list of {j.nv} numbers")
+    return joint_vector(system, values, fld)
+
+
+def at_state(system: System, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, *,
+             mass_inverse: np.ndarray | None = None) -> OperatingPoint:
+    """The operating point at a given state (``solve = "none"``): nothing is solved for.
+
+    The acceleration is the scene's forward dynamics there,
+    a0 = M(q0)^-1 (S u0 + tau_spring(q0) - D v0 - b(q0, v0)) [rad/s^2 or m/s^2], with b the
+    bias forces (gravity, Coriolis and centrifugal; the rotating frame's too when the scene
+    spins). ``residual`` holds the unbalanced force M a0 [N*m or N]; the point is an
+    equilibrium only when v0 and a0 vanish.
+
+    Args:
+        q0: Configuration (nq, checked by the caller), v0: velocity (nv) [rad/s or m/s],
+            u0: inputs (nu) [N*m or N].
+        mass_inverse: M(q0)^-1 when the caller has it.
+    """
+    nv = system.nv
+    tau = system.input_matrix @ u0 - system.rnea(q0, v0, np.zeros(nv))
+    if system.has_springs:
+        tau += system.spring_torque(q0)
+    if system.has_damping:
+        tau -= system.damping * v0
+    Minv = system.mass_inverse(q0) if mass_inverse is None else mass_inverse
+    a0 = Minv @ tau
+    tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
+    moving = bool(np.any(v0))
+    equilibrium = not moving and bool(np.abs(tau).max(initial=0.0) <= tol)
+    note = (f"state given (solve = \"none\"): |v0| = {np.sqrt(v0 @ v0):.6g}, "
+            f"|a0| = {np.sqrt(a0 @ a0):.6g}; the model is affine, x' = f0 + A x + B u with "
+            "f0 = [v0; a0]" if not equilibrium else
+            "state given (solve = \"none\"): an equilibrium")
+    return OperatingPoint.trusted(q=q0, v=v0, u=u0, a=a0, residual=tau, equilibrium=equilibrium,
+                                  tolerance=tol, y=None, lam=None, notes=(note,), lam_names=())

@@ -97,8 +97,8 @@ STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 _TOP_KEYS = ("name", "urdf", "robot", "base", "effects", "operating_point", "inputs", "outputs",
              "loops")
 _EFFECT_KEYS = ("gravity", "armature", "damping", "springs", "rotation", "mimic")
-_OP_KEYS = ("q", "independent", "solve", "u", "allow_non_equilibrium")
-_SOLVE_MODES = ("inputs", "positions")
+_OP_KEYS = ("q", "v", "independent", "solve", "u", "allow_non_equilibrium")
+_SOLVE_MODES = ("inputs", "positions", "none")
 _LOOP_KEYS = ("name", "type", "frame1", "frame2")
 LOOP_TYPES = ("point", "weld")
 
@@ -192,8 +192,14 @@ class OperatingPointSpec:
         independent: With loops or mimic couplings: the joints held at their ``q`` values
             during assembly, used as independent coordinates z; empty: pinlin chooses.
         solve: ``"inputs"``: find the inputs u0 that hold q0 at rest; ``"positions"``: find the
-            passive equilibrium q0 (``q`` is the starting guess) for the inputs ``u``.
-        u: Input values by joint name for ``solve = "positions"`` [N*m or N]; others zero.
+            passive equilibrium q0 (``q`` is the starting guess) for the inputs ``u``;
+            ``"none"``: take the state (q0, v0, u0) as given, moving or not (the model is
+            affine, x' = f0 + A x + B u, with the acceleration a0 reported).
+        u: Input values by joint name for ``solve = "positions"`` or ``"none"`` [N*m or N];
+            others zero.
+        v: Joint velocities by joint name for ``solve = "none"``: a number for a 1-DoF joint
+            [rad/s or m/s], a list of the joint's nv values (a free flyer: [vx, vy, vz, wx,
+            wy, wz] in the base frame); others zero.
         allow_non_equilibrium: Linearize about (q0, v = 0, u0) even when u0 cannot hold q0.
     """
 
@@ -202,6 +208,7 @@ class OperatingPointSpec:
     solve: str = "inputs"
     u: JointValues = field(default_factory=dict)
     allow_non_equilibrium: bool = False
+    v: JointValues = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         flag(None, "operating_point.allow_non_equilibrium", self.allow_non_equilibrium)
@@ -450,13 +457,19 @@ def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     solve = string(src, "operating_point.solve", tbl.get("solve", "inputs"), _SOLVE_MODES)
     u = joint_values(src, "operating_point.u", tbl.get("u", {}), unit=" [N*m or N]",
                      limit=COEFFICIENT_LIMIT)
-    if u and solve != "positions":
+    if u and solve == "inputs":
         raise SceneError(src, "operating_point.u", "inputs are given only with "
-                                                   "solve = \"positions\" (with \"inputs\" "
-                                                   "pinlin finds them)")
+                                                   "solve = \"positions\" or \"none\" (with "
+                                                   "\"inputs\" pinlin finds them)")
+    v = joint_values(src, "operating_point.v", tbl.get("v", {}), unit=" [rad/s or m/s]",
+                     limit=COEFFICIENT_LIMIT)
+    if v and solve != "none":
+        raise SceneError(src, "operating_point.v", "velocities are given only with solve = "
+                                                   "\"none\" (the other modes find a point "
+                                                   "at rest)")
     allow = flag(src, "operating_point.allow_non_equilibrium",
                  tbl.get("allow_non_equilibrium", False))
-    return OperatingPointSpec(q, independent, solve, u, allow)
+    return OperatingPointSpec(q, independent, solve, u, allow, v)
 
 
 def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:

@@ -6,7 +6,9 @@ With H_z = K, H_z' = C and H_z'' = M (eqs. 9.8-9.11 with R = I), eq. 9.57 in Row
 
 M^-1 comes from ``pin.computeMinverse`` (one recursion, no factorization), so one matrix
 product gives the whole lower block row. At v = 0 the upper block row is exactly [0 I] also on
-Lie groups (d/dt of ``difference(q0, q)`` equals v at q = q0).
+Lie groups (d/dt of ``difference(q0, q)`` equals v at q = q0); at a moving state the Lie-group
+joints add -1/2 ad(v0) to its first block (:mod:`pinlin.chart`), and the model is affine,
+x' = f0 + A x + B u with f0 = [v0; a0].
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..arrays import read_only
+from ..chart import kinematic_block
 from ..conditioning import trace_condition, warn_if_ill_conditioned
 from ..derivatives import error_estimate, propagated_noise, second_order_terms
 from ..linear_model import LinearModel
@@ -67,6 +70,9 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     terms = second_order_terms(system, op, derivatives, step, estimate_error)
     Minv = system.mass_inverse(op.q) if mass_inverse is None else mass_inverse
     A = system.kinematic_rows.copy()
+    moving = kinematic_block(system, op.v)
+    if moving is not None:  # Lie-group joints at a moving state (pinlin.chart)
+        A[:nv, :nv] = moving
     if terms.C is None:
         A[nv:, :nv] = -(Minv @ terms.K)
         C_damp = system.zero_velocity_terms
@@ -100,7 +106,11 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         sigma_K, sigma_C = terms.rounding
         rounding = max(propagated_noise(Minv, sigma_K), propagated_noise(Minv, sigma_C))
         info.update(error_estimate(A, A_alt, rounding))
+    f0 = None
+    if op.v.any() or op.a.any():  # off equilibrium: x' = f0 + A x + B u
+        f0 = read_only(np.concatenate([op.v, op.a]))
     return LinearModel.assembled(
+        f0=f0, dt=0.0,
         A=read_only(A), B=read_only(B), C=read_only(C), D=read_only(D),
         state_names=system.state_names, input_names=system.input_names, output_names=out_names,
         E=None, F=None, G=None, M=read_only(terms.M), C_damp=read_only(C_damp),

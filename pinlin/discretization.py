@@ -1,0 +1,106 @@
+"""Discrete-time models from continuous ones: zero-order hold and semi-implicit Euler.
+
+A continuous model x' = f0 + A x + B u (x, u deviations from the operating point, f0 the drift
+there) becomes x[k+1] = f0_d + A_d x[k] + B_d u[k] over a sample time dt [s]:
+
+- ``"zoh"``: the input held over the step, exact for the linear model. One matrix
+  exponential of the augmented matrix [[A, B, f0], [0, 0, 0]] dt gives [[A_d, B_d, f0_d],
+  [0, I, 0]] (Van Loan's construction; scipy's Padé ``expm`` with scaling and squaring).
+- ``"euler"``: the semi-implicit (symplectic) Euler step of MuJoCo and most simulators, for
+  mechanical models in x = [dq; v]: the velocity first, v+ = v + dt v', then the position with
+  the new velocity, dq+ = dq + dt (f0_q + A_qq dq + A_qv v+). With A = [[A_qq, A_qv],
+  [A_vq, A_vv]] and B = [0; B_v]::
+
+      A_d = [[I + dt A_qq + dt^2 A_qv A_vq, dt A_qv (I + dt A_vv)], [dt A_vq, I + dt A_vv]]
+      B_d = [[dt^2 A_qv B_v], [dt B_v]],   f0_d = [[dt f0_q + dt^2 A_qv f0_v], [dt f0_v]]
+
+  At rest (A_qq = 0, A_qv = I) this is MuJoCo's Euler map A_d = I + dt [[dt A_v + [0 I]],
+  [A_v]] (A_v the lower block row). MuJoCo integrates joint damping implicitly, (M + dt D)^-1;
+  pinlin's step treats every velocity term explicitly, so the two differ by O(dt^2 D / M)
+  where the scene has damping.
+
+Output matrices are unchanged (y[k] = C x[k] + D u[k]); the second-order matrices of the
+continuous model (M, C_damp, K, Bu) are not carried over, since they describe its derivatives.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg as sla
+
+from .exceptions import ArgumentError, ModelError
+
+METHODS = ("zoh", "euler")
+
+
+def discretize(model, dt: float, method: str = "zoh"):
+    """The discrete model of ``model`` (a continuous :class:`~pinlin.LinearModel`) over ``dt``
+    [s] by ``method`` (see the module docstring).
+
+    Raises:
+        ArgumentError: ``dt`` not a positive finite number [s], an unknown method, a model
+            already discrete, or ``"euler"`` on a model whose states are not [q:...; v:...].
+        ModelError: the model has input-derivative terms (E): discretize its standard form.
+    """
+    from .linear_model import LinearModel
+
+    if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
+            or not (math.isfinite(dt) and dt > 0):
+        raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r}")
+    if not isinstance(method, str) or method not in METHODS:
+        raise ArgumentError("method", f"expected one of {', '.join(map(repr, METHODS))}, got "
+                                      f"{method!r}")
+    if model.dt:
+        raise ArgumentError("model", f"model '{model.name}' is already discrete (dt = "
+                                     f"{model.dt:g} s)")
+    if model.E is not None and np.any(model.E):
+        raise ModelError(f"model '{model.name}' has input-derivative terms (E u'): discretize "
+                         "model.standard_form() instead, whose state is x - E u")
+    dt = float(dt)
+    n, m = model.B.shape
+    f0 = np.zeros(n) if model.f0 is None else model.f0
+    if method == "zoh":
+        aug = np.zeros((n + m + 1, n + m + 1))
+        aug[:n, :n] = model.A
+        aug[:n, n:n + m] = model.B
+        aug[:n, -1] = f0
+        phi = sla.expm(aug * dt)
+        A_d, B_d, f_d = phi[:n, :n], phi[:n, n:n + m], phi[:n, -1]
+    else:
+        A_d, B_d, f_d = _semi_implicit_euler(model, dt, f0)
+    return LinearModel(
+        A=A_d, B=B_d, C=model.C, D=model.D, state_names=model.state_names,
+        input_names=model.input_names, output_names=model.output_names, F=model.F,
+        operating_point=model.operating_point, G=model.G, name=model.name,
+        info={**model.info, "discretization": {"method": method, "dt": dt}},
+        f0=f_d if model.f0 is not None else None, dt=dt)
+
+
+def _semi_implicit_euler(model, dt: float, f0: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = model.A.shape[0]
+    nv = n // 2
+    names = model.state_names
+    mechanical = (n % 2 == 0 and all(s.startswith("q:") for s in names[:nv])
+                  and all(s.startswith("v:") for s in names[nv:]))
+    if not mechanical or np.any(model.B[:nv]):
+        raise ArgumentError("method", f"'euler' steps velocities then positions: model "
+                                      f"'{model.name}' needs states [q:...; v:...] and inputs "
+                                      "acting on the velocities only; use 'zoh'")
+    A = model.A
+    Aqq, Aqv, Avq, Avv = A[:nv, :nv], A[:nv, nv:], A[nv:, :nv], A[nv:, nv:]
+    Bv = model.B[nv:]
+    eye = np.eye(nv)
+    A_d = np.empty_like(A)
+    A_d[:nv, :nv] = eye + dt * Aqq + dt * dt * (Aqv @ Avq)
+    A_d[:nv, nv:] = dt * (Aqv @ (eye + dt * Avv))
+    A_d[nv:, :nv] = dt * Avq
+    A_d[nv:, nv:] = eye + dt * Avv
+    B_d = np.vstack([dt * dt * (Aqv @ Bv), dt * Bv])
+    f_d = np.concatenate([dt * f0[:nv] + dt * dt * (Aqv @ f0[nv:]), dt * f0[nv:]])
+    return A_d, B_d, f_d
+
+
+__all__ = ["METHODS", "discretize"]
