@@ -350,6 +350,16 @@ class Scene:
                             else None)
 
     # ----------------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without its built :attr:`system` (a Pinocchio model and its data, ~100x
+        the scene): a scene sent to another process rebuilds it there on first use."""
+        state = dict(self.__dict__)
+        state.pop("system", None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
     @functools.cached_property
     def system(self):
         """The :class:`~pinlin.system.System` for this scene, built once and reused."""
