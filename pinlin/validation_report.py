@@ -38,7 +38,7 @@ def write_report(res, folder: Path) -> None:
     import mujoco
     import pinocchio as pin
 
-    from .validate import EIG_TOL, EPS_LOOP, EPS_OPEN, MATRIX_TOL
+    from .validate import EIG_TOL, EPS_LOOP, EPS_OPEN, MATRIX_TOL, MOVING_TOL
 
     lines = [f"# Validation of '{res.name}' against MuJoCo", "",
              f"Verdict: **{res.status}**" + (f" — {res.reason}" if res.reason else ""), ""]
@@ -71,6 +71,12 @@ def write_report(res, folder: Path) -> None:
         "- Matrix error max |A_mj - A| / max |A|: "
         + (f"{res.matrix_error:.2e} (tolerance {MATRIX_TOL:.0e})" if res.matrix_error is not None
            else "not compared (loops: MuJoCo's state is the dependent coordinates)"),
+        "- Moving state (v random in [-1, 1], seed fixed): pinlin's Euler step against "
+        "MuJoCo's, max |A_d - A_d,mj| "
+        + (f"{res.moving_error[0]:.2e}, B_d relative {res.moving_error[1]:.2e} (tolerance "
+           f"{MOVING_TOL:.0e})" if res.moving_error is not None else
+           "not compared (a floating base, loops or damping: MuJoCo integrates damping "
+           "implicitly)"),
         f"- Largest relative eigenvalue error, non-rigid: {res.eig_error:.2e} (tolerance "
         f"{EIG_TOL:.0e})" + (f"; raw at d = 0.9999, before extrapolation to d = 1: "
                              f"{res.eig_error_raw:.2e}" if "loops" in res.effects
