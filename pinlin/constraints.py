@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import SceneError, UrdfError
+from .exceptions import ModelError, SceneError, UrdfError
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -147,6 +147,58 @@ class ConstraintSet:
             out[first + k, iv_m] += 1.0
             out[first + k, iv_j] -= mult
         return out
+
+    @property
+    def has_welds(self) -> bool:
+        return any(kind == "weld" for kind, *_ in self._loops)
+
+    def bias_acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """gamma = Phi_qq[v, v] (m): the constraint acceleration at (q, v) with zero joint
+        acceleration, so that the loops stay closed when Phi_q a = -gamma [m/s^2]. Point
+        loops: the difference of the two frames' classical accelerations (LOCAL_WORLD_ALIGNED,
+        from ``forwardKinematics(q, v, 0)``); mimic rows are linear: 0.
+
+        Raises:
+            ModelError: a weld loop (not supported at a moving state yet).
+        """
+        out = np.zeros(self.size)
+        if not self._loops:
+            return out
+        self._refuse_welds()
+        sysm = self.system
+        kin, kd = sysm.kin_model, sysm.kin_data
+        pin.forwardKinematics(kin, kd, sysm.kin_q(q), sysm.kin_v(v, spin=False),
+                              np.zeros(kin.nv))
+        pin.updateFramePlacements(kin, kd)
+        for _, f1, f2, row in self._loops:
+            out[row:row + 3] = (pin.getFrameClassicalAcceleration(kin, kd, f1, LWA).linear
+                                - pin.getFrameClassicalAcceleration(kin, kd, f2, LWA).linear)
+        return out
+
+    def jacobian_variation(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Phi_qq[w, .] (m x nv): the time variation of Phi_q along a velocity w [1/s], from
+        ``computeJointJacobiansTimeVariation(q, w)`` (point loops; mimic rows: 0).
+
+        Raises:
+            ModelError: a weld loop (not supported at a moving state yet).
+        """
+        sysm = self.system
+        out = np.zeros((self.size, sysm.nv))
+        if not self._loops:
+            return out
+        self._refuse_welds()
+        kin, kd = sysm.kin_model, sysm.kin_data
+        pin.computeJointJacobiansTimeVariation(kin, kd, sysm.kin_q(q), sysm.kin_v(w, spin=False))
+        cols = sysm.kin_columns
+        for _, f1, f2, row in self._loops:
+            out[row:row + 3] = (pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:3, cols]
+                                - pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:3, cols])
+        return out
+
+    def _refuse_welds(self) -> None:
+        if self.has_welds:
+            raise ModelError(f"scene '{self.system.scene.name}': weld loops at a moving state "
+                             "are not supported yet (point loops and mimic couplings are)")
 
     def hessian(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """sum_i lam_i Phi_i,qq (nv x nv, symmetric) at an assembled configuration q.

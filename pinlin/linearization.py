@@ -38,6 +38,7 @@ from .formulations import (
     linearize_reduced,
 )
 from .formulations.constrained import penalty_parameters
+from .formulations.motion import linearize_moving, moving_point, refuse_unsupported
 from .linear_model import LinearModel
 from .operating_point import (
     OperatingPoint,
@@ -146,11 +147,11 @@ def resolve_operating_point(system: System, q0: np.ndarray, *, allow_non_equilib
     and canonical formulations need its constraint point). ``state`` = (v0, u0): the state is
     given, nothing is solved for (:func:`pinlin.operating_point.at_state`)."""
     if state is not None:
-        if system.constraints or constrained:
-            raise ModelError(f"scene '{system.scene.name}': a given (moving) state is "
-                             "linearized in the independent formulation of an open chain; "
-                             "loops, mimic couplings and the penalty and canonical "
-                             "formulations at a given state are not supported yet")
+        if system.constraints:
+            return moving_point(system, q0, *state)
+        if constrained:
+            raise ModelError(f"scene '{system.scene.name}': the penalty and canonical "
+                             "formulations at a given (moving) state are not supported yet")
         if mass_inverse is None:
             mass_inverse = system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned)
         return at_state(system, q0, *state, mass_inverse=mass_inverse), None
@@ -279,8 +280,13 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
     if allow is None:
         allow = system.scene.operating_point.allow_non_equilibrium
     numeric = {"derivatives": derivatives, "step": step, "estimate_error": bool(estimate)}
-    if state is not None:
-        if formulation != "independent" or system.constraints:
+    if state is not None and system.constraints:
+        refuse_unsupported(system, formulation, basis, derivatives)
+        op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state)
+        assert cp is not None
+        model = linearize_moving(system, op, cp)
+    elif state is not None:
+        if formulation != "independent":
             resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state,
                                     constrained=True)  # raises: not supported yet
         Minv = system.mass_inverse(q0, allow_ill_conditioned=ill)

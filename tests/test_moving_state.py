@@ -138,7 +138,7 @@ def test_bad_state_arguments():
     with pytest.raises(pinlin.ArgumentError, match="argument 'u'"):
         pinlin.linearize("pendulum", u=["a"])
     with pytest.raises(pinlin.ModelError, match="not supported yet"):
-        pinlin.linearize("four_bar", v=np.zeros(3))
+        pinlin.linearize("ur5", v=np.zeros(6), formulation="penalty")
 
 
 def test_zero_order_hold_integrates_the_linear_model():

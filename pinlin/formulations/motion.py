@@ -1,0 +1,204 @@
+"""Constrained systems at a moving state: the independent-coordinate model of eqs. 9.8-9.11
+with every velocity term.
+
+The state is given (``solve = "none"`` or ``linearize(q=, v=, u=)``). pinlin closes the loops
+(:func:`pinlin.assembly.assemble`, z held), projects the given velocity onto the nullspace of
+Phi_q (orthogonally: the consistent velocity closest to the one given; the size of the
+correction is reported), and solves the constrained dynamics there (a KKT system)::
+
+    M a - G^T lam = tau - b,   G a = -gamma,   gamma = Phi_qq[v, v]
+
+for the acceleration a0 and the constraint forces lam0 (G: the independent rows of Phi_q).
+With z the independent coordinates (the partitioned basis), the motion is q = q(z),
+v = R(q) z', a = q'' and z'' = a[z]. Differentiating the KKT system at (q0, v0, a0, lam0)::
+
+    M da - G^T dlam = -K dq - C dv + S du
+    G da            = -c_q dq - c_v dv
+
+with c_q = Phi_qq[a0, .] + d gamma / dq and c_v = 2 Phi_qq[v0, .], which
+gives da = F_q dq + F_v dv + F_u du, where K and C are dH/dq and dH/dv at the moving state
+(Coriolis, damping, springs, and the geometric stiffness -lam0^T Phi_qq: pinlin's
+:func:`~pinlin.derivatives.second_order_terms`). Along the mechanism dq = R dz and
+dv = R dz' + W dz, where W dz = (dR/dz dz) z' has W[z] = 0 and G W = -Phi_qq[v0, .] R (from
+differentiating G R = 0). Hence, in x = [dz; dz']::
+
+    A = [[0, I], [(F_q R + F_v W)[z], (F_v R)[z]]],   B = [[0], [F_u[z]]],   f0 = [z0'; a0[z]]
+
+At rest (v0 = 0, a0 = 0) c_q = c_v = W = 0 and this is the static model R^T M R, R^T K R.
+Pinocchio gives every term analytically except d gamma / dq, a third derivative of the loop
+closure, which is taken by five-point central differences of gamma (step 1e-3: truncation
+~h^4, rounding ~eps |gamma| / h, about 1e-12 relative). Point loops and mimic couplings; weld
+loops, the orthonormal basis and the penalty and canonical formulations at a moving state
+are not supported yet. tests/test_moving_loops.py checks the model against central
+differences of Pinocchio's own constrained forward dynamics on the mechanism.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import scipy.linalg as sla
+
+from ..assembly import assemble, partition, projection
+from ..derivatives import second_order_terms
+from ..equilibrium import ConstrainedPoint
+from ..exceptions import ModelError
+from ..linear_model import LinearModel
+from ..operating_point import OperatingPoint, residual_tolerance
+from .independent import output_matrices
+
+#: Step of the five-point differences of gamma(q) [rad or m].
+GAMMA_STEP = 1e-3
+
+
+def moving_point(system, q_guess: np.ndarray, v0: np.ndarray, u0: np.ndarray
+                 ) -> tuple[OperatingPoint, ConstrainedPoint]:
+    """The operating point of a constrained system at a given state: q assembled (z held),
+    v projected onto the nullspace of Phi_q, (a0, lam0) from the constrained dynamics.
+
+    Raises:
+        AssemblyError: the loops cannot be closed from ``q_guess``.
+        ModelError: weld loops (not supported at a moving state yet).
+    """
+    cons = system.constraints
+    guess_part = partition(system, q_guess, check=False)
+    q0 = assemble(system, q_guess, guess_part.independent)
+    jac = cons.jacobian(q0)
+    part = partition(system, q0, jac)
+    G = jac[part.rows]
+    # Orthogonal projection of v0 onto the nullspace of G: v - G^T (G G^T)^-1 G v.
+    correction = G.T @ np.linalg.lstsq(G @ G.T, G @ v0, rcond=None)[0] if len(G) else \
+        np.zeros_like(v0)
+    v = v0 - correction
+    a0, lam_k = _constrained_dynamics(system, q0, v, u0, G, part)
+    lam = np.zeros(cons.size)
+    lam[part.rows] = lam_k
+    tau = _applied(system, q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
+    tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
+    zn = ", ".join(system.coordinate_names[i] for i in part.independent)
+    notes = [f"state given (solve = \"none\"), loops closed: independent coordinates {zn}; "
+             f"the velocity given was projected onto the constraint nullspace (correction "
+             f"|dv| = {np.linalg.norm(correction):.3g}); |a0| = {np.linalg.norm(a0):.6g}; "
+             "the model is affine, x' = f0 + A x + B u"]
+    if part.dropped:
+        notes.append(f"redundant constraint rows dropped: {', '.join(part.dropped)}")
+    op = OperatingPoint(q=q0, v=v, u=u0, a=a0, residual=system.mass_matrix(q0) @ a0,
+                        equilibrium=False, tolerance=tol, lam=lam, notes=tuple(notes),
+                        lam_names=cons.row_names)
+    return op, ConstrainedPoint(part, G)
+
+
+def _applied(system, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """S u + springs - damping [N*m or N]."""
+    tau = system.input_matrix @ u
+    if system.has_springs:
+        tau = tau + system.spring_torque(q)
+    if system.has_damping:
+        tau = tau - system.damping * v
+    return tau
+
+
+def _kkt(M: np.ndarray, G: np.ndarray) -> tuple:
+    """LU factors of [[M, -G^T], [G, 0]]."""
+    m = G.shape[0]
+    return sla.lu_factor(np.block([[M, -G.T], [G, np.zeros((m, m))]]))
+
+
+def _constrained_dynamics(system, q, v, u, G, part) -> tuple[np.ndarray, np.ndarray]:
+    """(a, lam_k) with M a - G^T lam = tau - b, G a = -gamma."""
+    nv = system.nv
+    M = system.mass_matrix(q)
+    rhs = np.concatenate([_applied(system, q, v, u) - system.rnea(q, v, np.zeros(nv)),
+                          -system.constraints.bias_acceleration(q, v)[part.rows]])
+    sol = sla.lu_solve(_kkt(M, G), rhs)
+    return sol[:nv], sol[nv:]
+
+
+def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> LinearModel:
+    """Independent-coordinate model of a constrained system at a moving state (module
+    docstring), analytic derivatives, partitioned basis."""
+    cons = system.constraints
+    part, G = cp.partition, cp.jacobian
+    rows, z = part.rows, part.independent
+    nv, nz = system.nv, len(z)
+    terms = second_order_terms(system, op, "analytic")
+    C = terms.C if terms.C is not None else np.zeros((nv, nv))
+    S = system.input_matrix
+    c_q = cons.jacobian_variation(op.q, op.a)[rows] + _gamma_derivative(system, op)[rows]
+    c_v = 2.0 * cons.jacobian_variation(op.q, op.v)[rows]
+    lu = _kkt(terms.M, G)
+    m = len(rows)
+    rhs = np.vstack([np.hstack([-terms.K, -C, S]),
+                     np.hstack([-c_q, -c_v, np.zeros((m, S.shape[1]))])])
+    F = sla.lu_solve(lu, rhs)[:nv]
+    F_q, F_v, F_u = F[:, :nv], F[:, nv:2 * nv], F[:, 2 * nv:]
+    R = projection(G, part)
+    W = np.zeros((nv, nz))
+    dep = part.dependent
+    if len(dep):
+        W[dep] = -np.linalg.solve(G[:, dep], cons.jacobian_variation(op.q, op.v)[rows] @ R)
+    A = np.zeros((2 * nz, 2 * nz))
+    A[:nz, nz:] = np.eye(nz)
+    A[nz:, :nz] = (F_q @ R + F_v @ W)[z]
+    A[nz:, nz:] = (F_v @ R)[z]
+    B = np.zeros((2 * nz, S.shape[1]))
+    B[nz:] = F_u[z]
+    f0 = np.concatenate([op.v[z], op.a[z]])
+    coords = [system.coordinate_names[i] for i in z]
+    states = tuple([f"q:{c}" for c in coords] + [f"v:{c}" for c in coords])
+    Cout, _, out_names, y0 = output_matrices(system, op)
+    if system.outputs is None:
+        Cout, out_names, y0 = np.eye(2 * nz), states, np.zeros(2 * nz)
+    else:  # y = h(q, v): dy = C_q dq + C_v dv with dq = R dz, dv = R dz' + W dz
+        Cq, Cv = Cout[:, :nv], Cout[:, nv:]
+        Cout = np.hstack([Cq @ R + Cv @ W, Cv @ R])
+    info = {
+        "formulation": "independent", "derivatives": "analytic", "basis": "partitioned",
+        "effects": system.scene.effects.in_play() + (["loops"] if system.scene.loops else []),
+        "velocity_terms": True, "base": "free" if system.base_joint else "fixed",
+        "notes": list(op.notes), "independent": coords,
+        "constraint_rows": [cons.row_names[i] for i in rows],
+        "dropped_rows": list(part.dropped), "R": R.tolist(),
+        "condition": {"constraint_jacobian": part.condition},
+    }
+    return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
+                       state_names=states, input_names=system.input_names,
+                       output_names=out_names, operating_point=op.with_outputs(y0),
+                       name=system.scene.name, info=info, f0=f0)
+
+
+def _gamma_derivative(system, op: OperatingPoint) -> np.ndarray:
+    """d gamma / dq at (q0, v0) (m x nv), v held: five-point central differences on the
+    manifold (step :data:`GAMMA_STEP`)."""
+    cons = system.constraints
+    h = GAMMA_STEP
+    out = np.zeros((cons.size, system.nv))
+    e = np.zeros(system.nv)
+    for j in range(system.nv):
+        e[j] = h
+        g = {k: cons.bias_acceleration(pin.integrate(system.model, op.q, k * e), op.v)
+             for k in (-2, -1, 1, 2)}
+        e[j] = 0.0
+        out[:, j] = (g[-2] - 8 * g[-1] + 8 * g[1] - g[2]) / (12 * h)
+    return out
+
+
+def refuse_unsupported(system, formulation: str, basis: str | None, derivatives: str) -> None:
+    """What this module cannot do yet, as a clear error."""
+    if derivatives != "analytic":
+        raise ModelError(f"scene '{system.scene.name}': a constrained system at a moving state "
+                         "is linearized with analytic derivatives only (fd3/fd5 not yet)")
+    if formulation != "independent" or (basis not in (None, "partitioned")):
+        raise ModelError(f"scene '{system.scene.name}': at a moving state a constrained system "
+                         "is linearized in the independent formulation with the partitioned "
+                         "basis; the penalty and canonical formulations and the orthonormal "
+                         "basis are not supported there yet")
+    if system.base_joint is not None:
+        raise ModelError(f"scene '{system.scene.name}': loops on a floating-base robot are not "
+                         "supported by this version of pinlin")
+    if system.constraints.has_welds:
+        raise ModelError(f"scene '{system.scene.name}': weld loops at a moving state are not "
+                         "supported yet (point loops and mimic couplings are)")
+
+
+__all__ = ["linearize_moving", "moving_point", "refuse_unsupported"]
