@@ -38,7 +38,12 @@ from .formulations import (
     linearize_reduced,
 )
 from .formulations.constrained import penalty_parameters
-from .formulations.motion import linearize_moving, moving_point, refuse_unsupported
+from .formulations.motion import (
+    linearize_moving,
+    linearize_moving_penalty,
+    moving_point,
+    refuse_unsupported,
+)
 from .linear_model import LinearModel
 from .operating_point import (
     OperatingPoint,
@@ -284,7 +289,8 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
         refuse_unsupported(system, formulation, basis, derivatives)
         op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state)
         assert cp is not None
-        model = linearize_moving(system, op, cp)
+        model = (linearize_moving(system, op, cp) if formulation == "independent" else
+                 linearize_moving_penalty(system, op, cp, alpha=alpha, mu=mu, omega=omega))
     elif state is not None:
         if formulation != "independent":
             resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state,

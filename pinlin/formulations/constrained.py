@@ -63,7 +63,8 @@ def first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, Bu: np.ndarray
 
 
 def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarray,
-                        Bu: np.ndarray, alpha: float, mu: float, omega: float
+                        Bu: np.ndarray, alpha: float, mu: float, omega: float,
+                        K_extra: np.ndarray | None = None, C_extra: np.ndarray | None = None
                         ) -> tuple[np.ndarray, np.ndarray]:
     """A, B of the penalty model without forming M + G^T alpha G.
 
@@ -79,11 +80,15 @@ def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarr
     quantity stays O(1) in alpha, so the physical eigenvalues keep their O(1/alpha) penalty
     error down to rounding, up to alpha = 1e14 and beyond. The same model as plain assembly in
     exact arithmetic; A and B are returned in the original coordinates.
+
+    ``K_extra`` and ``C_extra`` (m x n) add alpha G^T K_extra and alpha G^T C_extra to K_p and
+    C_p (the penalty force's dependence on the motion at a moving state): rotated, they too
+    fill only the constrained rows, as alpha S U^T X Q.
     """
     n, m = M.shape[0], G.shape[0]
     if m == 0:
         return first_order(M, C, K, Bu)
-    _, sv, vt = np.linalg.svd(G)
+    u_svd, sv, vt = np.linalg.svd(G)
     Q = np.hstack([vt[m:].T, vt[:m].T])  # [Z, N]
     f = n - m
     w = sv[:m] ** 2
@@ -92,6 +97,10 @@ def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarr
     eta = np.arange(f, n)
     Ct[eta, eta] += 2.0 * alpha * mu * omega * w
     Kt[eta, eta] += alpha * omega**2 * w
+    if K_extra is not None:
+        Kt[f:] += alpha * (sv[:m, None] * (u_svd.T @ K_extra @ Q))
+    if C_extra is not None:
+        Ct[f:] += alpha * (sv[:m, None] * (u_svd.T @ C_extra @ Q))
     D = Mt[f:, f:].copy()
     D[np.arange(m), np.arange(m)] += alpha * w
     rhs = np.hstack([Kt, Ct, Bt])

@@ -167,6 +167,61 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
                        name=system.scene.name, info=info, f0=f0)
 
 
+def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
+                             alpha: float | None = None, mu: float | None = None,
+                             omega: float | None = None) -> LinearModel:
+    """Penalty model (eq. 9.35 with every velocity term) of a constrained system at a moving
+    state, in all coordinates x = [dq; v]::
+
+        M q'' + b(q, q') = tau + Phi_q^T lam,  lam = -alpha (Phi'' + 2 mu Omega Phi' + Omega^2 Phi)
+
+    with Phi'' = Phi_q q'' + gamma. Its own acceleration a_p at the state (which tends to the
+    constrained a0 as 1/alpha) and lam_p come from the regularized KKT system
+    [[M, -G^T], [G, I / alpha]] [a; lam] = [tau - b; -gamma] (well conditioned for any
+    alpha). Linearized at (q0, v0, a_p, lam_p)::
+
+        M_p = M + alpha G^T G,   C_p = C + alpha G^T (2 Phi_qq[v0, .] + 2 mu Omega G),
+        K_p = K + alpha G^T (Phi_qq[a_p, .] + d gamma/dq + 2 mu Omega Phi_qq[v0, .] + Omega^2 G)
+
+    (K with the geometric stiffness -lam_p^T Phi_qq), formed by the same stable elimination
+    as at rest (:func:`~pinlin.formulations.constrained.penalty_first_order`); f0 = [v0; a_p].
+    """
+    from .constrained import _info, penalty_first_order, penalty_parameters
+
+    alpha, mu, omega = penalty_parameters(alpha, mu, omega)
+    cons = system.constraints
+    part, G = cp.partition, cp.jacobian
+    rows = part.rows
+    nv, m = system.nv, len(rows)
+    M = system.mass_matrix(op.q)
+    rhs = np.concatenate([_applied(system, op.q, op.v, op.u)
+                          - system.rnea(op.q, op.v, np.zeros(nv)),
+                          -cons.bias_acceleration(op.q, op.v)[rows]])
+    kkt = np.block([[M, -G.T], [G, np.eye(m) / alpha]])
+    sol = np.linalg.solve(kkt, rhs)
+    a_p, lam = sol[:nv], np.zeros(cons.size)
+    lam[rows] = sol[nv:]
+    pop = OperatingPoint.trusted(**{**op.__dict__, "a": a_p, "lam": lam})
+    terms = second_order_terms(system, pop, "analytic")
+    C = terms.C if terms.C is not None else np.zeros((nv, nv))
+    jv = cons.jacobian_variation(op.q, op.v)[rows]
+    K_extra = (cons.jacobian_variation(op.q, a_p)[rows] + _gamma_derivative(system, pop)[rows]
+               + 2.0 * mu * omega * jv)
+    S = system.input_matrix
+    A, B = penalty_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega,
+                               K_extra=K_extra, C_extra=2.0 * jv)
+    GtG = G.T @ G
+    Cout, D, out_names, y0 = output_matrices(system, pop)
+    info = _info(system, pop, cp, "penalty", "analytic", alpha=alpha, mu=mu, omega=omega)
+    return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
+                       input_names=system.input_names, output_names=out_names,
+                       M=terms.M + alpha * GtG,
+                       C_damp=C + alpha * G.T @ (2.0 * jv + 2.0 * mu * omega * G),
+                       K=terms.K + alpha * G.T @ (K_extra + omega**2 * G), Bu=S, G=G,
+                       operating_point=pop.with_outputs(y0), name=system.scene.name, info=info,
+                       f0=np.concatenate([op.v, a_p]))
+
+
 def _gamma_derivative(system, op: OperatingPoint) -> np.ndarray:
     """d gamma / dq at (q0, v0) (m x nv), v held: five-point central differences on the
     manifold (step :data:`GAMMA_STEP`)."""
@@ -188,11 +243,11 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
     if derivatives != "analytic":
         raise ModelError(f"scene '{system.scene.name}': a constrained system at a moving state "
                          "is linearized with analytic derivatives only (fd3/fd5 not yet)")
-    if formulation != "independent" or (basis not in (None, "partitioned")):
+    if formulation == "canonical" or (basis not in (None, "partitioned")):
         raise ModelError(f"scene '{system.scene.name}': at a moving state a constrained system "
                          "is linearized in the independent formulation with the partitioned "
-                         "basis; the penalty and canonical formulations and the orthonormal "
-                         "basis are not supported there yet")
+                         "basis or in the penalty formulation; the canonical formulation and "
+                         "the orthonormal basis are not supported there yet")
     if system.base_joint is not None:
         raise ModelError(f"scene '{system.scene.name}': loops on a floating-base robot are not "
                          "supported by this version of pinlin")
@@ -201,4 +256,5 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
                          "supported yet (point loops and mimic couplings are)")
 
 
-__all__ = ["linearize_moving", "moving_point", "refuse_unsupported"]
+__all__ = ["linearize_moving", "linearize_moving_penalty", "moving_point",
+           "refuse_unsupported"]
