@@ -21,7 +21,6 @@ import numpy as np
 import pinocchio as pin
 
 from .conditioning import AccuracyWarning, refuse_condition, singular_to_working_precision
-from .derivatives import BACKENDS, resolve_steps
 from .equilibrium import (
     ConstrainedPoint,
     input_vector,
@@ -30,14 +29,11 @@ from .equilibrium import (
 )
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .formulations import (
-    BASES,
-    FORMULATIONS,
     linearize_canonical,
     linearize_independent,
     linearize_penalty,
     linearize_reduced,
 )
-from .formulations.constrained import penalty_parameters
 from .formulations.motion import (
     linearize_moving,
     linearize_moving_penalty,
@@ -51,6 +47,14 @@ from .operating_point import (
     configuration,
     hold_at_rest,
     velocity_vector,
+)
+from .options import (
+    Canonical,
+    Derivatives,
+    Formulation,
+    Independent,
+    derivatives_from,
+    formulation_from,
 )
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
@@ -193,36 +197,18 @@ def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None 
                                    state=state)[0]
 
 
-def _check_options(system: System, formulation: str, derivatives: str,
-                   step: float | Mapping[str, float] | None, basis: str | None,
-                   alpha: float | None, mu: float | None, omega: float | None) -> None:
-    """Refuse options that do not apply to the request, each alike."""
-    if step is not None:
-        if derivatives == "analytic":
-            raise ArgumentError("step", "a finite-difference step applies to derivatives "
-                                        "'fd3' and 'fd5'; the analytic derivatives take none")
-        resolve_steps(derivatives, step)
-    if alpha is not None or mu is not None or omega is not None:
-        penalty_parameters(alpha, mu, omega)  # bad values are errors whatever the formulation
-        if formulation == "independent":
-            raise ArgumentError("alpha" if alpha is not None else "mu" if mu is not None
-                                else "omega",
-                                "alpha, mu and omega set the penalty and canonical "
-                                "formulations; the independent formulation has no penalty")
-    if basis is not None:
-        _choice("basis", basis, BASES)
-        if formulation != "independent":
-            raise ArgumentError("basis", f"the {formulation} formulation keeps the dependent "
-                                         "coordinates; a basis of independent coordinates "
-                                         "applies to the independent formulation")
-        if not system.constraints:
-            raise ArgumentError("basis", f"scene '{system.scene.name}' has no loops or mimic "
-                                         "couplings: its joint coordinates are independent "
-                                         "already")
+def _check_basis(system: System, form: Formulation) -> None:
+    """A basis of independent coordinates needs a constrained system."""
+    if isinstance(form, Independent) and form.basis is not None and not system.constraints:
+        raise ArgumentError("basis", f"scene '{system.scene.name}' has no loops or mimic "
+                                     "couplings: its joint coordinates are independent "
+                                     "already")
 
 
-def linearize(scene: Scene | System | str | Path, *, formulation: str = "independent",
-              derivatives: str = "analytic", step: float | Mapping[str, float] | None = None,
+def linearize(scene: Scene | System | str | Path, *,
+              formulation: str | Formulation = "independent",
+              derivatives: str | Derivatives = "analytic",
+              step: float | Mapping[str, float] | None = None,
               q: np.ndarray | None = None, v: np.ndarray | None = None,
               u: np.ndarray | None = None, allow_non_equilibrium: bool | None = None,
               basis: str | None = None, alpha: float | None = None, mu: float | None = None,
@@ -234,8 +220,14 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
         scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
             robot name. A scene caches its system, so repeated calls skip the model loading.
         formulation: ``"independent"`` (chapter 9.1.1), ``"penalty"`` (9.1.2, dependent
-            coordinates) or ``"canonical"`` (9.1.3, momenta and dependent coordinates).
-        derivatives: ``"analytic"`` (Pinocchio), ``"fd3"`` or ``"fd5"`` (chapter 9.2).
+            coordinates) or ``"canonical"`` (9.1.3, momenta and dependent coordinates), or an
+            option object carrying its settings: ``pinlin.Independent(basis=...)``,
+            ``pinlin.Penalty(alpha=..., mu=..., omega=...)``, ``pinlin.Canonical(...)``
+            (:mod:`pinlin.options`); ``basis``, ``alpha``, ``mu``, ``omega`` below are the
+            string shortcuts' settings.
+        derivatives: ``"analytic"`` (Pinocchio), ``"fd3"`` or ``"fd5"`` (chapter 9.2), or
+            ``pinlin.Analytic()`` / ``pinlin.FiniteDifferences(order=, step=,
+            estimate_error=)``; ``step`` and ``estimate_error`` below are the shortcuts'.
         step: Finite-difference step for ``fd3``/``fd5`` only: one number for all, or a table
             ``{"q": [rad or m], "v": [rad/s or m/s], "u": [N*m or N]}``, each in
             [1e-10, 0.1]; default ``pinlin.derivatives.DEFAULT_STEPS``.
@@ -273,26 +265,28 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
             ``allow_ill_conditioned`` (the message names the motion and bodies responsible).
         PinlinError: any other bad input (scene, URDF, operating point), by subclass.
     """
-    formulation = _choice("formulation", formulation, FORMULATIONS)
-    derivatives = _choice("derivatives", derivatives, BACKENDS)
+    form = formulation_from(formulation, basis, alpha, mu, omega)
+    deriv = derivatives_from(derivatives, step, estimate_error)
     allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
-    estimate = _flag("estimate_error", estimate_error)
     ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     system = _system(scene)
-    _check_options(system, formulation, derivatives, step, basis, alpha, mu, omega)
+    _check_basis(system, form)
     q0 = _configuration(system, q)
     state = _given_state(system, v, u)
     if allow is None:
         allow = system.scene.operating_point.allow_non_equilibrium
-    numeric = {"derivatives": derivatives, "step": step, "estimate_error": bool(estimate)}
+    numeric = {"derivatives": deriv.name, "step": deriv.step,
+               "estimate_error": deriv.estimate_error}
+    independent = isinstance(form, Independent)
     if state is not None and system.constraints:
-        refuse_unsupported(system, formulation, basis, derivatives)
+        refuse_unsupported(system, form.name, getattr(form, "basis", None), deriv.name)
         op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state)
         assert cp is not None
-        model = (linearize_moving(system, op, cp) if formulation == "independent" else
-                 linearize_moving_penalty(system, op, cp, alpha=alpha, mu=mu, omega=omega))
+        model = (linearize_moving(system, op, cp) if independent else
+                 linearize_moving_penalty(system, op, cp, alpha=form.alpha, mu=form.mu,
+                                          omega=form.omega))
     elif state is not None:
-        if formulation != "independent":
+        if not independent:
             resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state,
                                     constrained=True)  # raises: not supported yet
         Minv = system.mass_inverse(q0, allow_ill_conditioned=ill)
@@ -300,18 +294,20 @@ def linearize(scene: Scene | System | str | Path, *, formulation: str = "indepen
                                         mass_inverse=Minv, allow_ill_conditioned=ill,
                                         state=state)
         model = linearize_independent(system, op, mass_inverse=Minv, **numeric)
-    elif system.constraints or formulation != "independent" \
+    elif system.constraints or not independent \
             or system.scene.operating_point.solve != "inputs":
         op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
                                          constrained=True, allow_ill_conditioned=ill)
         assert cp is not None
-        if formulation == "independent":
-            model = linearize_reduced(system, op, cp, basis=basis or "partitioned", **numeric)
+        if independent:
+            model = linearize_reduced(system, op, cp, basis=form.basis or "partitioned",
+                                      **numeric)
             if not ill:
                 _refuse_singular_reduced(model)
         else:
-            build = linearize_penalty if formulation == "penalty" else linearize_canonical
-            model = build(system, op, cp, alpha=alpha, mu=mu, omega=omega, **numeric)
+            build = linearize_canonical if isinstance(form, Canonical) else linearize_penalty
+            model = build(system, op, cp, alpha=form.alpha, mu=form.mu, omega=form.omega,
+                          **numeric)
     else:
         # Shared by the operating point and the model; refuses a singular M (unless ill).
         Minv = system.mass_inverse(q0, allow_ill_conditioned=ill)

@@ -145,3 +145,40 @@ def test_operating_point_accepts_names_and_refuses_junk():
         pinlin.operating_point(None)
     with pytest.raises(pinlin.ArgumentError, match="argument 'allow_non_equilibrium'"):
         pinlin.operating_point("pendulum", allow_non_equilibrium="yes")
+
+
+def test_option_objects_equal_the_string_shortcuts():
+    """pinlin.Penalty(...) / FiniteDifferences(...) carry exactly what the string shortcuts'
+    keyword arguments carry: the same models."""
+    a = pinlin.linearize(FOUR_BAR, formulation="penalty", alpha=1e5, mu=0.5, omega=7.0,
+                         derivatives="fd5", step=1e-3)
+    b = pinlin.linearize(FOUR_BAR, formulation=pinlin.Penalty(alpha=1e5, mu=0.5, omega=7.0),
+                         derivatives=pinlin.FiniteDifferences(order=5, step=1e-3))
+    np.testing.assert_array_equal(a.A, b.A)
+    c = pinlin.linearize(FOUR_BAR, basis="orthonormal")
+    d = pinlin.linearize(FOUR_BAR, formulation=pinlin.Independent(basis="orthonormal"))
+    np.testing.assert_array_equal(c.A, d.A)
+    e = pinlin.linearize(FOUR_BAR, formulation=pinlin.Canonical(alpha=1e5))
+    assert e.info["formulation"] == "canonical" and e.info["alpha"] == 1e5
+
+
+@pytest.mark.parametrize("make, argument", [
+    (lambda: pinlin.Penalty(alpha=-1.0), "alpha"),
+    (lambda: pinlin.Penalty(mu="x"), "mu"),
+    (lambda: pinlin.Canonical(omega=float("inf")), "omega"),
+    (lambda: pinlin.Independent(basis="qr"), "basis"),
+    (lambda: pinlin.FiniteDifferences(order=4), "order"),
+    (lambda: pinlin.FiniteDifferences(step=6.3), "step"),
+    (lambda: pinlin.FiniteDifferences(estimate_error="no"), "estimate_error"),
+    (lambda: pinlin.linearize(FOUR_BAR, formulation=pinlin.Penalty(), mu=0.3), "mu"),
+    (lambda: pinlin.linearize(FOUR_BAR, formulation=pinlin.Independent(), basis="orthonormal"),
+     "basis"),
+    (lambda: pinlin.linearize(PENDULUM, derivatives=pinlin.FiniteDifferences(), step=1e-3),
+     "step"),
+    (lambda: pinlin.linearize(PENDULUM, formulation=pinlin.Independent(basis="orthonormal")),
+     "basis"),
+])
+def test_bad_option_objects_name_their_field(make, argument):
+    with pytest.raises(pinlin.ArgumentError) as info:
+        make()
+    assert info.value.argument == argument

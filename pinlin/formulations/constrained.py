@@ -26,6 +26,7 @@ First-order models follow Rowell: x = [dz; z'] (independent), [dq; v] (penalty),
 from __future__ import annotations
 
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -33,16 +34,20 @@ import scipy.linalg as sla
 
 from ..assembly import projection
 from ..conditioning import AccuracyWarning, warn_if_ill_conditioned
-from ..derivatives import error_estimate, propagated_noise, second_order_terms
+from ..derivatives import (
+    SecondOrderTerms,
+    error_estimate,
+    propagated_noise,
+    second_order_terms,
+)
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import ArgumentError, PinlinError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
+from ..options import BASES, PENALTY_DEFAULTS, Penalty
 from .independent import output_matrices
 
 #: Default penalty parameters: alpha [kg or kg*m^2 per row unit^2], Omega [rad/s], mu [-].
-PENALTY_DEFAULTS = {"alpha": 1e7, "omega": 10.0, "mu": 1.0}
-BASES = ("partitioned", "orthonormal")
 
 
 def first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, Bu: np.ndarray
@@ -279,21 +284,10 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
 
 def penalty_parameters(alpha: float | None, mu: float | None, omega: float | None
                        ) -> tuple[float, float, float]:
-    """Checked (alpha, mu, Omega) with the defaults filled in."""
-    out = []
-    for key, value in (("alpha", alpha), ("mu", mu), ("omega", omega)):
-        v = PENALTY_DEFAULTS[key] if value is None else value
-        try:
-            if isinstance(v, bool | str):
-                raise TypeError
-            v = float(v)
-        except (TypeError, ValueError, OverflowError):
-            raise ArgumentError(key, f"penalty {key} must be a number, got {value!r:.40}"
-                                ) from None
-        if not (np.isfinite(v) and v > 0):
-            raise ArgumentError(key, f"penalty {key} must be a finite number > 0, got {value!r}")
-        out.append(v)
-    return out[0], out[1], out[2]
+    """Checked (alpha, mu, Omega) with the defaults filled in (:class:`pinlin.Penalty`)."""
+    p = Penalty(**{k: v for k, v in (("alpha", alpha), ("mu", mu), ("omega", omega))
+                   if v is not None})
+    return p.alpha, p.mu, p.omega
 
 
 def penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega, estimate_error=True):
@@ -307,12 +301,26 @@ def penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega, estima
     return 0.5 * (Mp + Mp.T), Cp, Kp, terms
 
 
-def _penalty_setup(system, op, cp, derivatives, step, alpha, mu, omega, estimate_error):
+class _PenaltySetup(NamedTuple):
+    """What the penalty and canonical models start from."""
+
+    alpha: float
+    mu: float
+    omega: float
+    Mp: np.ndarray
+    Cp: np.ndarray
+    Kp: np.ndarray
+    terms: SecondOrderTerms
+    S: np.ndarray
+
+
+def _penalty_setup(system, op, cp, derivatives, step, alpha, mu, omega, estimate_error
+                   ) -> _PenaltySetup:
     """Checked (alpha, mu, Omega), the penalty matrices, the terms and the input matrix."""
     alpha, mu, omega = penalty_parameters(alpha, mu, omega)
     Mp, Cp, Kp, terms = penalty_matrices(system, op, cp, derivatives, step, alpha, mu, omega,
                                          estimate_error)
-    return alpha, mu, omega, Mp, Cp, Kp, terms, _input_matrix(system, terms)
+    return _PenaltySetup(alpha, mu, omega, Mp, Cp, Kp, terms, _input_matrix(system, terms))
 
 
 def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
