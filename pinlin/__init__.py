@@ -29,6 +29,7 @@ from .linear_model import LinearModel
 from .linearization import linearize, operating_point
 from .modal import ModalAnalysis, modal
 from .operating_point import OperatingPoint
+from .options import Analytic, Canonical, FiniteDifferences, Independent, Penalty
 from .resources import set_memory_limit
 from .scene import Effects, Scene, Spring
 from .system import System
@@ -37,15 +38,20 @@ __version__ = "0.1.0"
 
 __all__ = [
     "AccuracyWarning",
+    "Analytic",
     "ArgumentError",
     "AssemblyError",
+    "Canonical",
     "Effects",
     "EquilibriumError",
+    "FiniteDifferences",
+    "Independent",
     "LinearModel",
     "ModalAnalysis",
     "ModelError",
     "ModelFileError",
     "OperatingPoint",
+    "Penalty",
     "PinlinError",
     "ResourceError",
     "RobotLoadError",
@@ -58,9 +64,9 @@ __all__ = [
     "UnknownRobotError",
     "UrdfError",
     "__version__",
+    "graph",
     "linearize",
     "modal",
-    "graph",
     "operating_point",
     "set_memory_limit",
 ]
