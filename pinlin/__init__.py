@@ -32,6 +32,7 @@ from .operating_point import OperatingPoint
 from .options import Analytic, Canonical, FiniteDifferences, Independent, Penalty
 from .resources import set_memory_limit
 from .scene import Effects, Scene, Spring
+from .simulation import Simulation, simulate
 from .system import System
 
 __version__ = "0.1.0"
@@ -58,6 +59,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "ShapeError",
+    "Simulation",
     "Spring",
     "System",
     "UnknownNameError",
@@ -69,4 +71,5 @@ __all__ = [
     "modal",
     "operating_point",
     "set_memory_limit",
+    "simulate",
 ]

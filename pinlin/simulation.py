@@ -1,0 +1,366 @@
+"""``pinlin.simulate``: the scene's nonlinear motion about its operating point, in time.
+
+The equations of motion hold exactly the scene's effects; their coordinates (a re-centred
+chart for floating bases and other Lie-group joints, independent coordinates with the loops
+closed at every evaluation for mechanisms) are in :mod:`pinlin.simulation_ode`. They are
+integrated by one of the solvers of scipy's ``solve_ivp`` (its ``OdeSolver`` classes, stepped
+here one accepted step at a time, so that the coordinates can change between steps and held
+inputs switch exactly at their sample times; the solver restarts there with its step size).
+Outputs come from each step's dense output (no step is shortened to hit an output time).
+
+Method. ``method=None`` chooses by a stated criterion: with rho = max(-Re lambda) the fastest
+decay rate of the ODE's Jacobian at the initial state (central differences; the linear model
+there), the problem is stiff when rho T > :data:`STIFF_LIMIT` for the horizon T: an explicit
+method would spend more than ~STIFF_LIMIT / 5 steps on stability alone (|h lambda| < ~5 for
+DOP853), steps an implicit one does not need. Stiff: ``"Radau"`` (implicit, order 5); else
+``"DOP853"`` (explicit, order 8). Undamped fast oscillations do not count: every method must
+resolve them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import scipy.integrate
+
+from .arrays import read_only
+from .exceptions import ArgumentError, ModelError
+from .linearization import _system, operating_point
+from .operating_point import OperatingPoint
+from .scene import Scene
+from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain
+from .system import System
+
+#: rho * T above this is stiff (rho: fastest decay rate [1/s], T: horizon [s]).
+STIFF_LIMIT = 1e3
+METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
+
+
+@dataclass(frozen=True, eq=False)
+class Simulation:
+    """A simulated trajectory (read-only arrays, one row per output time).
+
+    Attributes:
+        t: (N,) times [s].
+        x: (N, 2nv) state in the linear model's coordinates about the operating point,
+            x = [difference(q0, q); v - v0] (all coordinates, dependent ones included).
+        z: (N, 2nz) the independent coordinates' part of ``x``, [dz; dz'] (the state of the
+            linear model of a mechanism); equal to ``x`` for an open chain.
+        q: (N, nq) configurations (Pinocchio convention, quaternions [x, y, z, w]).
+        v: (N, nv) velocities [rad/s or m/s] (a free flyer's in its own frame).
+        u: (N, nu) inputs applied, u0 + du [N*m or N].
+        y: (N, p) outputs: the linear model's y plus its ``operating_point.y``, i.e. frame
+            positions in the world [m], joint values ``difference(neutral, q)`` and
+            velocities; the state (``x``, or ``z`` for a mechanism) when the scene names none.
+        drift: (N, 2) constraint residuals max |Phi(q)| [m or rad] and max |Phi_q v|
+            [m/s or rad/s] (zeros without constraints).
+        energy: (N,) total mechanical energy [J]: kinetic 1/2 v^T M v (armature included) +
+            gravity + springs, minus the work of the constant inputs u0, u0 . difference(q0,
+            q) on their 1-DoF joints; constant without damping, non-increasing with it. None
+            when not defined: a rotating scene (a non-inertial frame), inputs du given, or u0
+            on a multi-DoF joint (``info["energy"]`` says why).
+        operating_point: The point simulated about (q0, v0, u0).
+        state_names, independent_names, input_names, output_names: Column names of x, z, u, y.
+        info: solver, method and why, rtol, atol, nfev, njev, nlu, steps (accepted),
+            restarts (chart, partition, input), stiffness (rho * T), notes.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    drift: np.ndarray
+    energy: np.ndarray | None
+    operating_point: OperatingPoint
+    state_names: tuple[str, ...]
+    independent_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------------------------------
+class _Inputs:
+    """u0 + du(t): none, a callable, or samples held from t_k to t_(k+1) (zero-order hold)."""
+
+    def __init__(self, u: object, t: np.ndarray, u0: np.ndarray) -> None:
+        nu = u0.size
+        self.u0, self.t = u0, t
+        self.samples: np.ndarray | None = None
+        self.function: Callable[[float], np.ndarray] | None = None
+        self.breaks = np.zeros(0)
+        if u is None:
+            return
+        if callable(u):
+            self.function = u
+            self.at(float(t[0]))  # checks the shape once
+            return
+        try:
+            samples = np.array(u, dtype=float)
+        except (TypeError, ValueError):
+            raise ArgumentError("u", f"expected a callable u(t) -> ({nu},) or an array of "
+                                     f"shape ({t.size}, {nu}), got {type(u).__name__}") from None
+        if samples.ndim == 1 and nu == 1:
+            samples = samples[:, None]
+        if samples.shape != (t.size, nu):
+            raise ArgumentError("u", f"expected an array of shape (N, nu) = ({t.size}, {nu}) "
+                                     f"(one row per time), got shape {samples.shape}")
+        if not np.all(np.isfinite(samples)):
+            raise ArgumentError("u", "contains NaN or inf")
+        self.samples = samples
+        change = np.flatnonzero(np.any(samples[1:] != samples[:-1], axis=1)) + 1
+        self.breaks = t[change]
+
+    def at(self, t: float) -> np.ndarray:
+        """u0 + du(t) [N*m or N] (samples: the one held at t)."""
+        if self.samples is not None:
+            k = max(int(np.searchsorted(self.t, t, side="right")) - 1, 0)
+            return self.u0 + self.samples[k]
+        if self.function is None:
+            return self.u0
+        du = np.asarray(self.function(t), dtype=float).reshape(-1)
+        if du.size != self.u0.size or not np.all(np.isfinite(du)):
+            raise ArgumentError("u", f"u(t) must return {self.u0.size} finite numbers, got "
+                                     f"{du!r:.80} at t = {t:g} s")
+        return self.u0 + du
+
+
+def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
+                   ) -> tuple[str, float, str]:
+    """(method, rho * T, why) by the stiffness criterion of the module docstring."""
+    t0, T = float(t[0]), float(t[-1] - t[0])
+    n = s0.size
+    J = np.zeros((n, n))
+    u = inputs.at(t0)
+    for k in range(n):
+        h = 1e-6 * max(1.0, abs(s0[k]))
+        e = np.zeros(n)
+        e[k] = h
+        J[:, k] = (dyn.rhs(t0, s0 + e, u) - dyn.rhs(t0, s0 - e, u)) / (2 * h)
+    dyn.state(s0)  # back to the initial configuration (mechanisms warm-start from it)
+    lam = np.linalg.eigvals(J) if n else np.zeros(0)
+    rho = max(0.0, float(-lam.real.min(initial=0.0)))
+    stiff = rho * T
+    method = "Radau" if stiff > STIFF_LIMIT else "DOP853"
+    why = (f"fastest decay rate {rho:.3g} 1/s times the horizon {T:.3g} s = {stiff:.3g} "
+           f"{'>' if stiff > STIFF_LIMIT else '<='} {STIFF_LIMIT:g}: "
+           f"{'stiff' if stiff > STIFF_LIMIT else 'not stiff'}")
+    return method, stiff, why
+
+
+def _integrate(dyn: Any, inputs: _Inputs, t: np.ndarray, s0: np.ndarray, method: str,
+               rtol: float, atol: float) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """(q, v) at the times t, and the solver statistics. The solver is restarted (with its
+    last step size) where the coordinates change (dyn.after_step) or a held input changes."""
+    solver_class = getattr(scipy.integrate, method)
+    N = t.size
+    q0, v0 = dyn.state(s0)
+    Q, V = np.zeros((N, q0.size)), np.zeros((N, v0.size))
+    Q[0], V[0] = q0, v0
+    stats = {"nfev": 0, "njev": 0, "nlu": 0, "steps": 0,
+             "restarts": {"chart": 0, "partition": 0, "input": 0}}
+    k, ts, s, h = 1, float(t[0]), s0, None
+    while k < N:
+        later = inputs.breaks[inputs.breaks > ts]
+        t_end = float(later[0]) if later.size else float(t[-1])
+        u_held = inputs.at(ts) if inputs.function is None else None
+
+        def fun(tt: float, ss: np.ndarray, u_held: np.ndarray | None = u_held) -> np.ndarray:
+            return dyn.rhs(tt, ss, u_held if u_held is not None else inputs.at(tt))
+
+        options: dict[str, Any] = {"rtol": rtol, "atol": atol}
+        if h is not None:
+            options["first_step"] = min(h, t_end - ts)
+        solver = solver_class(fun, ts, s, t_end, **options)
+        restart = None
+        while solver.status == "running" and restart is None:
+            message = solver.step()
+            if solver.status == "failed":
+                raise ModelError(f"the integration failed at t = {solver.t:.6g} s ({method}): "
+                                 f"{message}")
+            stats["steps"] += 1
+            j = int(np.searchsorted(t, solver.t, side="right"))
+            if j > k:
+                dense = solver.dense_output() if t[k] != solver.t else None
+                for i in range(k, j):
+                    state = solver.y if t[i] == solver.t else dense(t[i])
+                    Q[i], V[i] = dyn.state(state)
+                k = j
+            restart = dyn.after_step(solver.y)
+        for key in ("nfev", "njev", "nlu"):
+            stats[key] += int(getattr(solver, key, 0))
+        h = float(getattr(solver, "h_abs", None) or solver.step_size or 0.0) or None
+        ts = float(solver.t)
+        if restart is not None:
+            s = restart[0]
+            stats["restarts"][restart[1]] += 1
+        else:
+            s = solver.y
+            if k < N:
+                stats["restarts"]["input"] += 1
+    return Q, V, stats
+
+
+def _outputs(system: System, Q: np.ndarray, V: np.ndarray) -> np.ndarray | None:
+    """Absolute outputs (frame positions [m], joint values and velocities), or None when the
+    scene names none."""
+    spec = system.outputs
+    if spec is None:
+        return None
+    model, neutral = system.model, pin.neutral(system.model)
+    Y = np.zeros((Q.shape[0], len(spec.names)))
+    kin, kd = system.kin_model, system.kin_data
+    for i, (q, v) in enumerate(zip(Q, V, strict=True)):
+        x = np.concatenate([pin.difference(model, neutral, q), v])
+        for row, col in spec.state_rows:
+            Y[i, row] = x[col]
+        if spec.frames:
+            pin.framesForwardKinematics(kin, kd, system.kin_q(q))
+            for row, fid in spec.frames:
+                Y[i, row:row + 3] = kd.oMf[fid].translation
+    return Y
+
+
+def _energy(system: System, op: OperatingPoint, Q: np.ndarray, V: np.ndarray,
+            inputs: _Inputs) -> tuple[np.ndarray | None, str]:
+    """Total mechanical energy [J] (Simulation.energy) and what it contains or why it is
+    undefined."""
+    if system.rotation is not None:
+        return None, "undefined: the scene rotates (a non-inertial frame)"
+    if inputs.samples is not None or inputs.function is not None:
+        return None, "undefined: inputs du(t) do work that is not a potential"
+    loaded = np.flatnonzero(op.u)
+    joint_nv = np.zeros(system.nv, dtype=int)
+    for j in system.joints.values():
+        joint_nv[j.idx_v:j.idx_v + j.nv] = j.nv
+    if np.any(joint_nv[system.actuated[loaded]] != 1):
+        return None, "undefined: u0 acts on a multi-DoF joint (its work is path dependent)"
+    model, data = system.model, system.data
+    E = np.zeros(Q.shape[0])
+    for i, (q, v) in enumerate(zip(Q, V, strict=True)):
+        E[i] = 0.5 * v @ system.mass_matrix(q) @ v + pin.computePotentialEnergy(model, data, q)
+        if system.has_springs:
+            E[i] += 0.5 * system.stiffness @ pin.difference(model, system.q_rest, q) ** 2
+        if loaded.size:
+            E[i] -= op.u @ pin.difference(model, op.q, q)[system.actuated]
+    terms = ["kinetic"] + ["gravity"] * (system.scene.effects.gravity is not None) \
+        + ["springs"] * system.has_springs
+    what = " + ".join(terms) + (" - work of u0" if loaded.size else "") \
+        + (" (damped: non-increasing)" if system.has_damping else "")
+    return E, what
+
+
+def _time_grid(t: object) -> np.ndarray:
+    try:
+        grid = np.array(t, dtype=float)
+    except (TypeError, ValueError):
+        raise ArgumentError("t", f"expected an increasing sequence of times [s], got "
+                                 f"{type(t).__name__}") from None
+    if grid.ndim != 1 or grid.size < 1 or not np.all(np.isfinite(grid)) \
+            or np.any(np.diff(grid) <= 0.0):
+        raise ArgumentError("t", "expected a 1-D, finite, strictly increasing sequence of "
+                                 "times [s] with at least one entry")
+    return grid
+
+
+def _tolerance(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
+        raise ArgumentError(name, f"expected a number, got {type(value).__name__}")
+    if not (np.isfinite(value) and value > 0.0):
+        raise ArgumentError(name, f"expected a finite number > 0, got {value!r}")
+    return float(value)
+
+
+def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: object = None, *,
+             q0: np.ndarray | None = None, v0: np.ndarray | None = None,
+             rtol: float = 1e-10, atol: float = 1e-12, method: str | None = None
+             ) -> Simulation:
+    """The scene's nonlinear motion about its operating point (module docstring).
+
+    Args:
+        scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
+            robot name.
+        t: Output times [s], strictly increasing; the motion starts at t[0].
+        dx0: Initial deviation in the linear model's coordinates, x = [difference(q0, q);
+            v - v0] (2 nv); for a mechanism also 2 nz (its independent coordinates, the state
+            of its linear model); given in all coordinates, the independent part is kept, the
+            loops closed and v = R z'. Default zero.
+        u: Input deviations added to u0 [N*m or N]: a callable u(t) -> (nu,), or an (N, nu)
+            array, row k held from t[k] to t[k+1]. Default none.
+        q0, v0: The point to simulate about instead of the scene's, resolved as
+            ``pinlin.operating_point(scene, q=q0, v=v0)``: q0 alone (nq) keeps the scene's
+            ``solve`` (u0 holds q0 at rest); with v0 (nv) [rad/s or m/s] the state is given
+            and u0 is the scene's ``u`` (else zero), e.g. a floating base in free fall.
+        rtol, atol: Solver tolerances (relative; absolute in the state's units).
+        method: One of ``METHODS`` (scipy's names); None chooses DOP853 or Radau by the
+            stiffness criterion (module docstring).
+
+    Raises:
+        ArgumentError, ShapeError: a bad argument.
+        EquilibriumError: as :func:`pinlin.operating_point`, the scene's q0 cannot be held
+            by its inputs (give the state with ``v0`` to simulate from it anyway).
+        ModelError: weld loops or loops on a floating base; a singular mass matrix; the
+            mechanism reaching a position where its loops do not close; a failed step.
+    """
+    system = _system(scene)
+    grid = _time_grid(t)
+    rtol, atol = _tolerance("rtol", rtol), _tolerance("atol", atol)
+    if method is not None and method not in METHODS:
+        raise ArgumentError("method", f"expected one of {', '.join(METHODS)} or None, got "
+                                      f"{method!r}")
+    op = operating_point(system, q=q0, v=v0)
+    dyn: OpenChain | Mechanism = Mechanism(system, op) if system.constraints else \
+        OpenChain(system, op)
+    nv = system.nv
+    try:
+        deviation = np.zeros(2 * nv) if dx0 is None else np.array(dx0, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ArgumentError("dx0", f"expected {2 * nv} numbers, got {type(dx0).__name__}") \
+            from None
+    if not np.all(np.isfinite(deviation)):
+        raise ArgumentError("dx0", "contains NaN or inf")
+    s0, notes = dyn.initial_state(deviation)
+    inputs = _Inputs(u, grid, op.u)
+    stiffness, why = float("nan"), "given"
+    if method is None:
+        method, stiffness, why = _choose_method(dyn, s0, inputs, grid)
+    Q, V, stats = _integrate(dyn, inputs, grid, s0, method, rtol, atol)
+
+    X = np.hstack([np.array([pin.difference(system.model, op.q, q) for q in Q]), V - op.v])
+    cols = dyn.columns if isinstance(dyn, Mechanism) else np.arange(nv)
+    Z = np.hstack([X[:, cols], X[:, nv + cols]])
+    drift = np.array([dyn.drift(q, v) for q, v in zip(Q, V, strict=True)]) \
+        if isinstance(dyn, Mechanism) else np.zeros((grid.size, 2))
+    names = [system.coordinate_names[i] for i in cols]
+    independent = tuple([f"q:{n}" for n in names] + [f"v:{n}" for n in names])
+    Y = _outputs(system, Q, V)
+    out_names = system.outputs.names if system.outputs is not None else independent
+    if Y is None:
+        Y = Z
+    energy, energy_note = _energy(system, op, Q, V, inputs)
+    U = np.array([inputs.at(float(ti)) for ti in grid]).reshape(grid.size, op.u.size)
+    info = {"solver": f"scipy.integrate.{method}", "method": method, "method_reason": why,
+            "stiffness": stiffness, "rtol": rtol, "atol": atol, **stats,
+            "coordinates": ("independent (dz, z'), loops closed by Newton at every evaluation"
+                            if isinstance(dyn, Mechanism) else
+                            "chart (dq, v) about a reference re-centred past "
+                            f"{CHART_LIMIT:g} rad" if system.nq != nv else "(dq, v)"),
+            "energy": energy_note, "notes": notes,
+            "effects": system.scene.effects.in_play() + (["loops"] if system.scene.loops
+                                                         else [])}
+    return Simulation(
+        t=read_only(grid), x=read_only(X), z=read_only(Z), q=read_only(Q), v=read_only(V),
+        u=read_only(U), y=read_only(np.array(Y)), drift=read_only(drift),
+        energy=None if energy is None else read_only(energy), operating_point=op,
+        state_names=system.state_names, independent_names=independent,
+        input_names=system.input_names, output_names=tuple(out_names), info=info)
+
+
+__all__ = ["METHODS", "Simulation", "simulate"]

@@ -1,0 +1,259 @@
+"""The scene's equations of motion as first-order ODEs in vector-space coordinates, for
+:func:`pinlin.simulate`::
+
+    M(q) v' + b(q, v) = S u + tau_spring(q) - D v  (- Phi_q^T lam with constraints)
+
+with exactly the scene's effects (gravity, springs, viscous damping, armature in M, steady
+rotation through :meth:`pinlin.System.rnea`, loops and mimic couplings; no joint limits,
+friction or contacts). Each class offers ``initial_state(dx0)``, ``rhs(t, s, u)``,
+``state(s) -> (q, v)`` and ``after_step(s)``, which returns a state in new coordinates (and
+why) when the integrator must restart in them.
+
+:class:`OpenChain` (floating bases included). Runge-Kutta stages add states linearly, which
+is only valid in a vector space, so the state is s = (dq, v) in a chart
+q = ``pin.integrate(q_ref, dq)``, with d(dq)/dt = J(dq) v, J = ``pin.dDifference(q_ref, q,
+ARG1)`` (the inverse right Jacobian of the exponential map on Lie-group joints, the identity
+on the others). The chart is exact for rotation angles below pi; after an accepted step where
+an angle of the chart (free flyer, spherical, planar or continuous joint) exceeds
+:data:`CHART_LIMIT`, it is re-centred (q_ref := q, dq := 0). q stays on the manifold (unit
+quaternions) by construction; ``q + dq`` is never formed.
+
+:class:`Mechanism` (loops, mimic couplings). The state is s = (dz, z') in independent
+coordinates z (the partition of :func:`pinlin.assembly.partition` at q0; 1-DoF joints, whose
+chart is additive). Each evaluation closes the loops by Newton on the dependent coordinates
+with z held (warm-started from the last configuration with the first-order predictor R dz,
+iterated to rounding level), sets v = R(q) z' with R the partitioned nullspace basis
+(G R = 0, G the independent rows of Phi_q) and solves the KKT system of
+:mod:`pinlin.formulations.motion`, M a - G^T lam = tau - b, G a = -Phi_qq[v, v], for
+z'' = a[z]. The motion stays on the constraint manifold by construction, with no Baumgarte
+terms and no projection to tune: |Phi(q)| is Newton's rounding level and |Phi_q v| the
+rounding of R at every state, whatever the horizon. Where the dependent block of G becomes
+ill-conditioned (near a singular position of z; :data:`PARTITION_RATIO` times worse than a
+fresh choice) z is re-chosen (pivoted QR) after the step. Weld loops and loops on a floating
+base are refused (as in :mod:`pinlin.formulations.motion`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import scipy.linalg as sla
+
+from .arrays import complement
+from .assembly import partition
+from .coordinates import FREE_FLYER, SPHERICAL
+from .exceptions import ModelError, ShapeError
+from .operating_point import OperatingPoint
+from .system import System
+
+#: Largest rotation angle of the chart before it is re-centred [rad] (the log map is exact
+#: below pi; its Jacobian's condition grows like 1 / sin(angle / 2) near pi).
+CHART_LIMIT = 1.0
+#: z is re-chosen when its dependent block of Phi_q is this many times worse conditioned than
+#: a fresh choice's.
+PARTITION_RATIO = 10.0
+#: Newton iterations allowed to close the loops at one state.
+NEWTON_ITERATIONS = 30
+#: Newton stops once max |Phi| is below this [m or rad] (rounding: ~1e-16 per metre).
+NEWTON_TOLERANCE = 1e-14
+PLANAR = "JointModelPlanar"
+
+
+class OpenChain:
+    """s = (dq, v) in the chart about q_ref (module docstring)."""
+
+    def __init__(self, system: System, op: OperatingPoint) -> None:
+        self.system, self.model, self.op = system, system.model, op
+        self.nv = system.nv
+        self.q_ref = op.q.copy()
+        self.lie = system.nq != system.nv
+        self.angles: list[np.ndarray] = []  # chart coordinates that are angles, per joint
+        for j in system.joints.values():
+            first = {FREE_FLYER: 3, SPHERICAL: 0, PLANAR: 2}.get(j.kind)
+            if first is not None:
+                size = 3 if j.kind in (FREE_FLYER, SPHERICAL) else 1
+                self.angles.append(np.arange(j.idx_v + first, j.idx_v + first + size))
+            elif j.nq != j.nv:
+                self.angles.append(np.arange(j.idx_v, j.idx_v + j.nv))
+
+    def initial_state(self, dx0: np.ndarray) -> tuple[np.ndarray, list[str]]:
+        if dx0.size != 2 * self.nv:
+            raise ShapeError(f"dx0 must have 2 nv = {2 * self.nv} entries, got {dx0.size}")
+        self.q_ref = pin.integrate(self.model, self.op.q, dx0[:self.nv])
+        return np.concatenate([np.zeros(self.nv), self.op.v + dx0[self.nv:]]), []
+
+    def rhs(self, t: float, s: np.ndarray, u: np.ndarray) -> np.ndarray:
+        system, nv = self.system, self.nv
+        dq, v = s[:nv], s[nv:]
+        q = pin.integrate(self.model, self.q_ref, dq)
+        tau = applied(system, q, v, u)
+        if system.rotation is None:
+            a = pin.aba(self.model, system.data, q, v, tau)
+        else:
+            a = sla.solve(system.mass_matrix(q), tau - system.rnea(q, v, np.zeros(nv)),
+                          assume_a="pos")
+        qdot = pin.dDifference(self.model, self.q_ref, q, pin.ArgumentPosition.ARG1) @ v \
+            if self.lie else v
+        return np.concatenate([qdot, a])
+
+    def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return pin.integrate(self.model, self.q_ref, s[:self.nv]), s[self.nv:].copy()
+
+    def after_step(self, s: np.ndarray) -> tuple[np.ndarray, str] | None:
+        """A re-centred state when the chart's angles exceed CHART_LIMIT, else None."""
+        if not any(np.linalg.norm(s[i]) > CHART_LIMIT for i in self.angles):
+            return None
+        self.q_ref = pin.integrate(self.model, self.q_ref, s[:self.nv])
+        return np.concatenate([np.zeros(self.nv), s[self.nv:]]), "chart"
+
+
+class Mechanism:
+    """s = (dz, z') in independent coordinates; q(z) closed by Newton (module docstring)."""
+
+    def __init__(self, system: System, op: OperatingPoint) -> None:
+        if system.base_joint is not None:
+            raise ModelError(f"scene '{system.scene.name}': loops on a floating-base robot are "
+                             "not supported by pinlin.simulate yet")
+        if system.constraints.has_welds:
+            raise ModelError(f"scene '{system.scene.name}': weld loops are not supported by "
+                             "pinlin.simulate yet (point loops and mimic couplings are)")
+        self.system, self.model, self.op = system, system.model, op
+        self.cons, self.nv = system.constraints, system.nv
+        self.joint_nv = np.zeros(self.nv, dtype=int)
+        for j in system.joints.values():
+            self.joint_nv[j.idx_v:j.idx_v + j.nv] = j.nv
+        jac = self.cons.jacobian(op.q)
+        part = partition(system, op.q, jac)
+        self.rows, self.dropped = part.rows, part.dropped
+        m = len(part.rows)
+        self._kkt = np.zeros((self.nv + m, self.nv + m))  # [[M, -G^T], [G, 0]], refilled
+        self._use(part.independent)
+        self.columns = part.independent  # of z in x, fixed at q0
+        self.cache: tuple[np.ndarray, ...] = ()
+
+    def _use(self, independent: np.ndarray) -> None:
+        for i in independent:
+            if self.joint_nv[i] != 1:
+                raise ModelError(f"scene '{self.system.scene.name}': independent coordinate "
+                                 f"'{self.system.coordinate_names[i]}' is not a 1-DoF joint; "
+                                 "pinlin.simulate needs 1-DoF independent joints (name them "
+                                 "in operating_point.independent)")
+        self.z, self.d = np.asarray(independent), complement(self.nv, independent)
+
+    def initial_state(self, dx0: np.ndarray) -> tuple[np.ndarray, list[str]]:
+        nv, nz = self.nv, self.z.size
+        if dx0.size == 2 * nz and nz != nv:
+            dz, dzdot = dx0[:nz], dx0[nz:]
+        elif dx0.size == 2 * nv:
+            dz, dzdot = dx0[:nv][self.z], dx0[nv:][self.z]
+        else:
+            raise ShapeError(f"dx0 must have 2 nv = {2 * nv} entries (all coordinates) or 2 nz "
+                             f"= {2 * nz} (the independent ones), got {dx0.size}")
+        G = self.cons.jacobian(self.op.q)[self.rows]
+        self.cache = (np.zeros(nz), self.op.q, G, self._basis(G))
+        s = np.concatenate([dz, self.op.v[self.z] + dzdot])
+        q, v = self.state(s)
+        notes = []
+        if dx0.size == 2 * nv:
+            dq = pin.difference(self.model, pin.integrate(self.model, self.op.q, dx0[:nv]), q)
+            dv = v - self.op.v - dx0[nv:]
+            notes.append(f"dx0 given in all coordinates: its independent part kept, the loops "
+                         f"closed (|dq| changed by {np.linalg.norm(dq):.3g}) and v = R z' "
+                         f"(|dv| changed by {np.linalg.norm(dv):.3g})")
+        return s, notes
+
+    def _configure(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, G, R) at chart state s: Newton on the dependent coordinates, z held, from the
+        last configuration and its first-order predictor R (dz - dz_last)."""
+        dz = s[:self.z.size]
+        dz_c, q, G, R = self.cache
+        if np.array_equal(dz, dz_c):
+            return q, G, R
+        cons, rows, model = self.cons, self.rows, self.model
+        q = pin.integrate(model, q, R @ (dz - dz_c))
+        previous = np.inf
+        for _ in range(NEWTON_ITERATIONS):
+            phi = cons.residual(q)[rows]
+            best = float(np.abs(phi).max(initial=0.0))
+            # Converged at rounding level, or a step no longer shrinks the residual.
+            if best <= NEWTON_TOLERANCE or (best < 1e-10 and best > 0.25 * previous):
+                break
+            previous = best
+            Gd = cons.jacobian(q)[rows][:, self.d]
+            dq = np.zeros(self.nv)
+            dq[self.d] = np.linalg.solve(Gd, -phi)
+            q = pin.integrate(model, q, dq)
+        if not best < 1e-9:
+            raise ModelError(f"scene '{self.system.scene.name}': the loops do not close along "
+                             f"the motion (residual {best:.3g} m or rad after Newton): the "
+                             "mechanism reached a singular position")
+        G = cons.jacobian(q)[rows]
+        R = self._basis(G)
+        self.cache = (dz.copy(), q, G, R)
+        return q, G, R
+
+    def _basis(self, G: np.ndarray) -> np.ndarray:
+        """Partitioned nullspace basis R (nv x nz): R[z] = I, G R = 0."""
+        R = np.zeros((self.nv, self.z.size))
+        R[self.z, np.arange(self.z.size)] = 1.0
+        if self.d.size:
+            R[self.d] = -np.linalg.solve(G[:, self.d], G[:, self.z])
+        return R
+
+    def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        q, _, R = self._configure(s)
+        return q, R @ s[self.z.size:]
+
+    def rhs(self, t: float, s: np.ndarray, u: np.ndarray) -> np.ndarray:
+        system, nv = self.system, self.nv
+        q, G, R = self._configure(s)
+        zdot = s[self.z.size:]
+        v = R @ zdot
+        rhs = np.concatenate([applied(system, q, v, u) - system.rnea(q, v, np.zeros(nv)),
+                              -self.cons.bias_acceleration(q, v)[self.rows]])
+        kkt = self._kkt
+        kkt[:nv, :nv] = system.mass_matrix(q)
+        kkt[:nv, nv:] = -G.T
+        kkt[nv:, :nv] = G
+        a = np.linalg.solve(kkt, rhs)[:nv]
+        return np.concatenate([zdot, a[self.z]])
+
+    def after_step(self, s: np.ndarray) -> tuple[np.ndarray, str] | None:
+        """New independent coordinates where the dependent block of G is PARTITION_RATIO times
+        worse conditioned than that of a fresh choice (pivoted QR of G, actuated joints
+        preferred as independent): near a singular position of the current z, errors in z
+        are amplified by that condition number in the dependent coordinates."""
+        q, G, R = self._configure(s)
+        if not self.d.size:
+            return None
+        current = np.linalg.cond(G[:, self.d])
+        if current <= PARTITION_RATIO:  # a fresh choice cannot beat it by the ratio
+            return None
+        weight = np.ones(self.nv)
+        weight[self.system.actuated] = 1e-3
+        _, _, piv = sla.qr(G * weight, mode="economic", pivoting=True)
+        independent = np.sort(piv[G.shape[0]:])
+        if current <= PARTITION_RATIO * np.linalg.cond(G[:, complement(self.nv, independent)]):
+            return None
+        v = R @ s[self.z.size:]
+        self._use(independent)
+        dz = pin.difference(self.model, self.op.q, q)[self.z]
+        self.cache = (dz, q, G, self._basis(G))
+        return np.concatenate([dz, v[self.z]]), "partition"
+
+    def drift(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
+        return (float(np.abs(self.cons.residual(q)).max()),
+                float(np.abs(self.cons.jacobian(q) @ v).max()))
+
+
+def applied(system: System, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """S u + tau_spring(q) - D v [N*m or N]."""
+    tau = system.input_matrix @ u
+    if system.has_springs:
+        tau = tau + system.spring_torque(q)
+    if system.has_damping:
+        tau = tau - system.damping * v
+    return tau
+
+
+__all__ = ["CHART_LIMIT", "Mechanism", "OpenChain", "applied"]
