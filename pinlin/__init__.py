@@ -25,13 +25,18 @@ from .exceptions import (
     UnknownRobotError,
     UrdfError,
 )
+from .frequency import FrequencyResponse, bode, frequency_response
 from .linear_model import LinearModel
 from .linearization import linearize, operating_point
 from .modal import ModalAnalysis, modal
+from .modal_coordinates import ModalCoordinates
+from .modal_energy import ModalEnergy
 from .operating_point import OperatingPoint
 from .options import Analytic, Canonical, FiniteDifferences, Independent, Penalty
 from .resources import set_memory_limit
+from .response import Response, response
 from .scene import Effects, Scene, Spring
+from .signals import Signal, harmonic, impulse, step
 from .simulation import Simulation, simulate
 from .system import System
 
@@ -46,19 +51,24 @@ __all__ = [
     "Effects",
     "EquilibriumError",
     "FiniteDifferences",
+    "FrequencyResponse",
     "Independent",
     "LinearModel",
     "ModalAnalysis",
+    "ModalCoordinates",
+    "ModalEnergy",
     "ModelError",
     "ModelFileError",
     "OperatingPoint",
     "Penalty",
     "PinlinError",
     "ResourceError",
+    "Response",
     "RobotLoadError",
     "Scene",
     "SceneError",
     "ShapeError",
+    "Signal",
     "Simulation",
     "Spring",
     "System",
@@ -66,10 +76,16 @@ __all__ = [
     "UnknownRobotError",
     "UrdfError",
     "__version__",
+    "bode",
+    "frequency_response",
     "graph",
+    "harmonic",
+    "impulse",
     "linearize",
     "modal",
     "operating_point",
+    "response",
     "set_memory_limit",
     "simulate",
+    "step",
 ]

@@ -29,12 +29,18 @@ import functools
 import math
 import numbers
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
 
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
+
+if TYPE_CHECKING:
+    from .modal_coordinates import ModalCoordinates
+    from .modal_energy import ModalEnergy
+    from .scene import Scene
 
 METHODS = ("auto", "symmetric", "general")
 RIGID_RTOL = 1e-6
@@ -145,6 +151,33 @@ class ModalAnalysis:
         norm = float(np.linalg.norm(self.model.A))
         kappa = np.nan_to_num(self.condition, nan=np.inf)
         return np.minimum(kappa * eps, np.sqrt(eps)) * norm
+
+    # Decoupling and energy live in pinlin.modal_coordinates and pinlin.modal_energy.
+    @functools.cached_property
+    def decoupling(self) -> ModalCoordinates:
+        """The modal form r' = Lam r + B_r u + f_r of the model (x = T r, r = L^H x with
+        L^H R = I; Jordan or Schur blocks where A is defective or nearly so): a
+        :class:`~pinlin.modal_coordinates.ModalCoordinates`, built on first access."""
+        from .modal_coordinates import from_analysis
+
+        return from_analysis(self)
+
+    def to_modal(self, x: np.ndarray) -> np.ndarray:
+        """Modal coordinates r = L^H x of states ``x`` ((n,) or (N, n)); see
+        :attr:`decoupling` for their order (its blocks)."""
+        return self.decoupling.to_modal(x)
+
+    def from_modal(self, r: np.ndarray) -> np.ndarray:
+        """States x = Re(R r) of modal coordinates ``r`` ((n,) or (N, n))."""
+        return self.decoupling.from_modal(r)
+
+    def energy(self, scene: Scene | None = None) -> ModalEnergy:
+        """Kinetic and potential energy shares of each mode per coordinate (and the kinetic
+        share per body when ``scene``, the model's :class:`~pinlin.Scene`, is given): a
+        :class:`~pinlin.modal_energy.ModalEnergy`."""
+        from .modal_energy import modal_energy
+
+        return modal_energy(self, scene)
 
     def dominant(self, index: int, threshold: float = 0.5, limit: int = 3) -> list[str]:
         """Names of the coordinates whose |shape| entry is at least ``threshold`` in mode

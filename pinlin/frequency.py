@@ -1,0 +1,242 @@
+"""Frequency responses of a linear model, from its modal form, and Bode plots.
+
+For x' = A x + B u + E u', y = C x + D u + F u' and u = U e^{jwt}, the steady-state output is
+Y = H(jw) U with::
+
+    H(jw) = C (jw I - A)^-1 (B + jw E) + D + jw F
+          = C (jw I - A)^-1 B' + D' + jw F           (standard form: B' = B + A E, D' = D + C E)
+
+computed from the modal form x = T r (:mod:`pinlin.modal_coordinates`)::
+
+    H(jw) = sum_i c_i b_i^T / (jw - lam_i) + D' + jw F      (c_i = C r_i, b_i^T = l_i^H B')
+
+with a Jordan or Schur block of the modal form solved as one small system (jw I - Lam_b)^-1.
+A discrete model (dt > 0) gives H(e^{jw dt}) = C (z I - A)^-1 B + D at z = e^{jw dt}, from the
+eigenvectors of its A. At an undamped mode's frequency (jw = lam_i exactly) H is infinite.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import ArgumentError, ModelError
+from .files import check_file_target, write_atomic
+from .linear_model import LinearModel
+
+#: A Bode figure draws at most this many (output, input) curves: beyond, select some with
+#: ``inputs=`` / ``outputs=``.
+MAX_CURVES = 36
+
+
+@dataclass(frozen=True, eq=False)
+class FrequencyResponse:
+    """H(jw) on a grid of frequencies; arrays are read-only.
+
+    Attributes:
+        w: Frequencies [rad/s].
+        H: Complex gains, shape (len(w), p, m): H[k, i, j] = y_i / u_j at w[k] (units of the
+            output per unit of the input).
+        input_names, output_names: The m inputs and p outputs selected.
+        name: The model's name.
+        note: How H was computed (the modal form used).
+    """
+
+    w: np.ndarray
+    H: np.ndarray
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    name: str
+    note: str
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        """|H| (same shape as H)."""
+        return np.abs(self.H)
+
+    @property
+    def magnitude_db(self) -> np.ndarray:
+        """20 log10 |H| [dB] (-inf where H = 0)."""
+        with np.errstate(divide="ignore"):
+            return 20.0 * np.log10(np.abs(self.H))
+
+    @property
+    def phase(self) -> np.ndarray:
+        """Phase of H [rad], unwrapped along w."""
+        return np.unwrap(np.angle(self.H), axis=0)
+
+    def gain(self, output: str, input: str) -> np.ndarray:  # noqa: A002 (the signal's name)
+        """H[:, output, input] (len(w)) for the named output and input."""
+        return self.H[:, _pick(output, self.output_names, "output"),
+                      _pick(input, self.input_names, "input")]
+
+
+def _pick(name: str, names: Sequence[str], what: str) -> int:
+    if name in names:
+        return list(names).index(name)
+    raise ArgumentError(what, f"no {what} named {name!r:.60}; expected one of "
+                              f"{', '.join(names)}")
+
+
+def _select(chosen: Sequence[str] | str | None, names: tuple[str, ...], what: str) -> list[int]:
+    if chosen is None:
+        return list(range(len(names)))
+    if isinstance(chosen, str):
+        chosen = [chosen]
+    out = []
+    for name in chosen:
+        if not isinstance(name, str):
+            raise ArgumentError(f"{what}s", f"expected {what} names, got "
+                                            f"{type(name).__name__}")
+        idx = [i for i, n in enumerate(names) if n == name or n == f"u:{name}"]
+        if not idx:
+            close = difflib.get_close_matches(name, names, n=3)
+            hint = (f"did you mean {', '.join(map(repr, close))}?" if close
+                    else f"the model's {what}s are {', '.join(names) or '(none)'}")
+            raise ArgumentError(f"{what}s", f"no {what} named {name!r:.60}; {hint}")
+        out.append(idx[0])
+    return out
+
+
+def _frequencies(w: object) -> np.ndarray:
+    try:
+        arr = np.array(w, dtype=float).reshape(-1) if np.ndim(w) <= 1 else None
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.size == 0 or not np.all(np.isfinite(arr)):
+        raise ArgumentError("w", "expected a 1-D sequence of finite frequencies [rad/s]")
+    return arr
+
+
+def frequency_response(model: LinearModel, w: np.ndarray | Sequence[float],
+                       inputs: Sequence[str] | str | None = None,
+                       outputs: Sequence[str] | str | None = None) -> FrequencyResponse:
+    """H(jw) of ``model`` at the frequencies ``w`` [rad/s], from its modal form.
+
+    Args:
+        model: A :class:`~pinlin.LinearModel` (continuous, or discrete: H(e^{jw dt})).
+        w: Frequencies [rad/s].
+        inputs, outputs: Names to keep (default all); an input may be named without its
+            ``u:`` prefix.
+
+    Raises:
+        ArgumentError: not a LinearModel, bad ``w``, or an input or output name the model
+            does not have.
+        ModelError: a discrete model with input-derivative terms (E, F).
+    """
+    if not isinstance(model, LinearModel):
+        raise ArgumentError("model", f"expected a pinlin LinearModel, got "
+                                     f"{type(model).__name__}")
+    w = _frequencies(w)
+    cols = _select(inputs, model.input_names, "input")
+    rows = _select(outputs, model.output_names, "output")
+    std = model.standard_form()
+    if model.dt:
+        for key in ("E", "F"):
+            mat = getattr(model, key)
+            if mat is not None and np.any(mat):
+                raise ModelError(f"model '{model.name}' is discrete with input-derivative "
+                                 f"terms ({key}): no frequency response")
+        from .modal_coordinates import decouple
+
+        dec = decouple(std.A, std.B, std.C, why="eigenvectors of the discrete A; ")
+        s = np.exp(1j * w * model.dt)
+    else:
+        from .modal import modal
+
+        modes = modal(std)
+        dec = modes.decoupling
+        s = 1j * w
+    Br, Cr = dec.input_matrix[:, cols], dec.output_matrix[rows]
+    H = np.zeros((len(w), len(rows), len(cols)), dtype=complex)
+    scalars = [s_ for s_, e in dec.blocks if e - s_ == 1]
+    if scalars:
+        lam = np.diag(dec.matrix)[scalars]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            resolvent = 1.0 / (s[:, None] - lam[None, :])
+        H += np.einsum("pi,ki,im->kpm", Cr[:, scalars], resolvent, Br[scalars])
+    for s_, e in ((s_, e) for s_, e in dec.blocks if e - s_ > 1):
+        k = e - s_
+        mats = s[:, None, None] * np.eye(k) - dec.matrix[s_:e, s_:e]
+        X = np.linalg.solve(mats, np.broadcast_to(Br[s_:e], (len(w), k, len(cols))))
+        H += np.einsum("pi,kim->kpm", Cr[:, s_:e], X)
+    H += std.D[np.ix_(rows, cols)]
+    if std.F is not None and np.any(std.F) and not model.dt:
+        H += s[:, None, None] * std.F[np.ix_(rows, cols)]
+    for arr in (w, H):
+        arr.flags.writeable = False
+    return FrequencyResponse(w, H, tuple(model.input_names[j] for j in cols),
+                             tuple(model.output_names[i] for i in rows), model.name,
+                             f"{dec.kind} modal form: {dec.note}")
+
+
+def bode(model: LinearModel, w: np.ndarray | Sequence[float], path: str | Path,
+         inputs: Sequence[str] | str | None = None,
+         outputs: Sequence[str] | str | None = None) -> FrequencyResponse:
+    """Draw the Bode plot of ``model`` (magnitude [dB] and phase [deg] against w [rad/s],
+    log scale) into the PNG file ``path``, written atomically; returns the response drawn.
+
+    Args:
+        model: The model.
+        w: Frequencies [rad/s], > 0 (logarithmic axis).
+        path: Output file, ending in ``.png``.
+        inputs, outputs: Names to draw (default all, at most :data:`MAX_CURVES` pairs).
+
+    Raises:
+        ArgumentError: a path not ending in .png, w <= 0, or too many curves.
+        ModelFileError: the file cannot be written.
+    """
+    path = check_file_target(path)
+    if path.suffix.lower() != ".png":
+        raise ArgumentError("path", f"a Bode plot is written as PNG: expected a name ending "
+                                    f"in .png, got '{path.name}'")
+    freq = _frequencies(w)
+    if np.any(freq <= 0):
+        raise ArgumentError("w", "a Bode plot needs frequencies > 0 [rad/s] (log axis)")
+    if not isinstance(model, LinearModel):
+        raise ArgumentError("model", f"expected a pinlin LinearModel, got "
+                                     f"{type(model).__name__}")
+    rows = _select(outputs, model.output_names, "output")
+    cols = _select(inputs, model.input_names, "input")
+    if len(rows) * len(cols) > MAX_CURVES:
+        raise ArgumentError("inputs", f"{len(rows)} outputs x {len(cols)} inputs = "
+                                      f"{len(rows) * len(cols)} curves, more than "
+                                      f"{MAX_CURVES}: choose some with inputs= / outputs=")
+    fr = frequency_response(model, np.sort(freq), inputs, outputs)
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_mag, ax_ph) = plt.subplots(2, 1, sharex=True, figsize=(7.0, 6.0))
+    finite = np.isfinite(fr.H)
+    with np.errstate(divide="ignore"):
+        db = np.where(finite, fr.magnitude_db, np.nan)
+    phase = np.degrees(np.unwrap(np.angle(np.where(finite, fr.H, 1.0)), axis=0))
+    phase = np.where(finite, phase, np.nan)
+    for i, out in enumerate(fr.output_names):
+        for j, inp in enumerate(fr.input_names):
+            label = f"{out} / {inp}"
+            ax_mag.semilogx(fr.w, db[:, i, j], label=label)
+            ax_ph.semilogx(fr.w, phase[:, i, j], label=label)
+    ax_mag.set_ylabel("magnitude [dB]")
+    ax_ph.set_ylabel("phase [deg]")
+    ax_ph.set_xlabel("w [rad/s]")
+    ax_mag.set_title(f"Bode plot of '{model.name}'")
+    for ax in (ax_mag, ax_ph):
+        ax.grid(True, which="both", alpha=0.3)
+    ax_mag.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    try:
+        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=80,
+                                                  bbox_inches="tight"))
+    finally:
+        plt.close(fig)
+    return fr
+
+
+__all__ = ["MAX_CURVES", "FrequencyResponse", "bode", "frequency_response"]
