@@ -294,7 +294,8 @@ class LinearModel:
         return LinearModel(self.A, self.B + self.A @ self.E, self.C, self.D + self.C @ self.E,
                            tuple(f"{s}'" for s in self.state_names), self.input_names,
                            self.output_names, F=F, name=self.name,
-                           info={**self.info, "standard_form": "x' = x - E u"})
+                           info={**self.info, "standard_form": "x' = x - E u"},
+                           f0=self.f0, dt=self.dt)  # x' - E u drifts as x does
 
     def discretize(self, dt: float, method: str = "zoh") -> LinearModel:
         """The discrete model over sample time ``dt`` [s]: x[k+1] = f0_d + A_d x[k] + B_d u[k],
