@@ -39,6 +39,8 @@ from .scene import Effects, Scene, Spring
 from .signals import Signal, harmonic, impulse, step
 from .simulation import Simulation, simulate
 from .system import System
+from .trajectory import TrajectoryModel, linearize_trajectory
+from .trajectory_files import trajectory_columns
 
 __version__ = "0.1.0"
 
@@ -72,6 +74,7 @@ __all__ = [
     "Simulation",
     "Spring",
     "System",
+    "TrajectoryModel",
     "UnknownNameError",
     "UnknownRobotError",
     "UrdfError",
@@ -82,10 +85,12 @@ __all__ = [
     "harmonic",
     "impulse",
     "linearize",
+    "linearize_trajectory",
     "modal",
     "operating_point",
     "response",
     "set_memory_limit",
     "simulate",
     "step",
+    "trajectory_columns",
 ]

@@ -1,5 +1,5 @@
-"""Command-line interface: ``pinlin linearize``, ``pinlin validate``, ``pinlin export-mjcf``,
-``pinlin bench``, ``pinlin graph``, ``pinlin robots``.
+"""Command-line interface: ``pinlin linearize``, ``pinlin trajectory``, ``pinlin validate``,
+``pinlin export-mjcf``, ``pinlin bench``, ``pinlin graph``, ``pinlin robots``.
 
 Bad input never produces a traceback: the error goes to stderr as one line and the exit status
 is 2. Warnings (:class:`pinlin.AccuracyWarning` and others) go to stderr as one
@@ -371,6 +371,127 @@ def _cmd_graph(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The trajectory command draws its progress bar once a run has taken this long [s].
+PROGRESS_AFTER = 1.0
+
+
+class _PointsBar:
+    """``progress(done, total)`` for :func:`pinlin.linearize_trajectory`: a one-line bar on
+    stderr, drawn once the run has taken :data:`PROGRESS_AFTER` seconds."""
+
+    def __init__(self, enabled: bool) -> None:
+        import time
+
+        self.enabled, self.start, self.drawn = enabled, time.perf_counter(), False
+
+    def __call__(self, done: int, total: int) -> None:
+        import time
+
+        if not self.enabled or (not self.drawn and
+                                time.perf_counter() - self.start < PROGRESS_AFTER):
+            return
+        width = 30
+        filled = int(width * done / total)
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} points")
+        sys.stderr.flush()
+        self.drawn = True
+        if done == total:
+            sys.stderr.write("\n")
+            self.enabled = False
+
+    def close(self) -> None:
+        """End a bar left part-drawn (a run stopped by an error)."""
+        if self.enabled and self.drawn:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+            self.enabled = False
+
+
+def _dask_executor(address: str):
+    """(client, executor) for the Dask scheduler at ``address``."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ArgumentError("--dask", "needs Dask: pip install 'pinlin[dask]'") from None
+    try:
+        client = Client(address, timeout=10)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ArgumentError("--dask", f"cannot reach a Dask scheduler at {address!r}: "
+                                      f"{' '.join(str(exc).split()) or type(exc).__name__}") \
+            from None
+    return client, client.get_executor()
+
+
+def _cmd_trajectory(args: argparse.Namespace) -> int:
+    import time
+
+    from .exceptions import ShapeError
+    from .files import check_file_target
+    from .scene import Scene
+    from .trajectory import linearize_trajectory
+    from .trajectory_files import MODEL_FORMATS, read_states
+
+    out = Path(args.out)
+    if out.suffix not in MODEL_FORMATS:
+        raise ModelFileError(out, f"unknown trajectory model format '{out.suffix}'; expected "
+                                  ".npz or .mat")
+    check_file_target(out)
+    parent = out.parent if str(out.parent) else Path(".")
+    if not os.access(parent, os.W_OK) or (out.exists() and not os.access(out, os.W_OK)):
+        raise ModelFileError(out, "cannot write: permission denied")
+    if args.workers < 1:
+        raise ArgumentError("--workers", f"expected a number of processes >= 1, got "
+                                         f"{args.workers}")
+    if args.dask is not None and args.workers != 1:
+        raise ArgumentError("--dask", "runs on the cluster's workers; leave out --workers")
+    if args.dt is not None and not (np.isfinite(args.dt) and args.dt > 0):
+        raise ArgumentError("--dt", f"expected a sample time > 0 [s], got {args.dt:g}")
+    if args.discretization is not None and args.dt is None:
+        raise ArgumentError("--discretization", "applies with --dt (the sample time [s])")
+    scene = Scene.resolve(args.target)
+    q, v, u, t = read_states(args.states, scene.system)
+    client = executor = None
+    if args.dask is not None:
+        client, executor = _dask_executor(args.dask)
+    bar = _PointsBar(not args.no_progress)
+    start = time.perf_counter()
+    try:
+        model = linearize_trajectory(scene, q, v, u, t, workers=args.workers,
+                                     executor=executor, derivatives=args.derivatives,
+                                     step=args.step, progress=bar)
+    except ArgumentError as exc:
+        bar.close()
+        if exc.argument in ("q", "v", "u", "t"):
+            raise ModelFileError(args.states, f"{exc.argument}: {exc.reason}") from None
+        raise
+    except ShapeError as exc:
+        bar.close()
+        raise ModelFileError(args.states, str(exc).replace("argument ", "")) from None
+    except BaseException:
+        bar.close()
+        raise
+    finally:
+        if client is not None:
+            client.close()
+    elapsed = time.perf_counter() - start
+    where = (f"Dask at {args.dask}" if args.dask else _plural(args.workers, "process",
+                                                                "processes"))
+    n_points = len(model)
+    print(f"trajectory of '{model.name}': {_plural(n_points, 'point')}, "
+          f"{_plural(len(model.state_names), 'state')}, "
+          f"{_plural(len(model.input_names), 'input')}, "
+          f"{_plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
+          f"derivatives ({model.info['path']}), {where}: {elapsed:.3g} s "
+          f"({1e6 * elapsed / n_points:.3g} us per point)")
+    if args.dt is not None:
+        method = args.discretization or "zoh"
+        model = model.discretize(args.dt, method)
+        print(f"discretized: {method}, dt = {args.dt:g} s")
+    model.save(out)
+    print(f"models written to {out}")
+    return 0
+
+
 def format_poles(A: np.ndarray) -> str:
     """The eigenvalues of A, slowest first, a conjugate pair once as ``re +- im j``; "none"
     for a model without states."""
@@ -459,7 +580,29 @@ def build_parser() -> argparse.ArgumentParser:
                      help="keep A-type elements in series and T-type in parallel (report the "
                           "excess states instead of combining them)")
     gra.set_defaults(func=_cmd_graph)
-    for command in (lin, ben, val, exp):
+    tra = sub.add_parser("trajectory", help="linear models at every state of a trajectory")
+    tra.add_argument("target", metavar="SCENE_OR_ROBOT",
+                     help="scene .toml, .urdf, bundled scene name or example-robot-data robot")
+    tra.add_argument("states", metavar="TRAJECTORY",
+                     help=".npz with arrays q (N, nq), v (N, nv), u (N, nu) [, t (N,)], or .csv "
+                          "with a header naming the columns t, q:<joint>, v:<coordinate>, "
+                          "u:<coordinate> (see the README)")
+    tra.add_argument("--out", required=True, metavar="FILE", type=_file_name("--out"),
+                     help="write the stacked models (.npz or .mat)")
+    tra.add_argument("--workers", type=int, default=1,
+                     help="processes on this machine (default 1)")
+    tra.add_argument("--dask", metavar="ADDRESS", default=None,
+                     help="run on a Dask cluster, e.g. tcp://scheduler:8786 (extra 'dask')")
+    tra.add_argument("--derivatives", choices=BACKENDS, default="analytic")
+    tra.add_argument("--step", type=float, default=None,
+                     help="finite-difference step for fd3/fd5 [rad, m, rad/s, m/s, N*m, N]")
+    tra.add_argument("--dt", type=float, default=None,
+                     help="discretize the models with this sample time [s]")
+    tra.add_argument("--discretization", choices=("zoh", "euler"), default=None,
+                     help="with --dt: zero-order hold (default) or semi-implicit Euler")
+    tra.add_argument("--no-progress", action="store_true", help="no progress bar")
+    tra.set_defaults(func=_cmd_trajectory)
+    for command in (lin, ben, val, exp, tra):
         command.add_argument("--memory-limit", metavar="SIZE", default=None,
                              help="refuse a model whose estimated memory exceeds SIZE: bytes, "
                                   "or with suffix K, M, G, T (powers of 1024), e.g. 8G "

@@ -1,0 +1,364 @@
+"""The stacked arrays of a trajectory's linear models, computed for a range of its points.
+
+Every way of running a trajectory (one process, worker processes on shared memory, a
+``concurrent.futures`` executor) calls :func:`fill` on arrays laid out by :class:`Layout`; it
+writes the models of points ``lo:hi`` in place. Two paths:
+
+- **batch** (analytic derivatives, no steady rotation): per point one
+  ``pin.computeABADerivatives(model, data, q, v, tau)`` with the generalized force
+  tau = S u + tau_spring(q) - D v of the scene, whose outputs are the state matrix's lower block
+  row and B directly (chapter 9.1.1 with R = I, Pinocchio's ABA derivatives)::
+
+      A = [[K0(v), I], [ddq_dq - M^-1 diag(k), ddq_dv - M^-1 diag(c)]],
+      B = [[0], [M^-1 S]],   f0 = [v; ddq],
+
+  M^-1 = ``data.Minv``; k and c the spring stiffness and damping (their derivatives enter
+  through M^-1); K0(v) is the Lie-group block of :mod:`pinlin.chart`, built for all points at
+  once with numpy. No LinearModel, no names, no per-point checks: :func:`check` looks at the
+  whole stack once at the end.
+- **per point**: :func:`pinlin.linearize` at each point (steady rotation, ``fd3``/``fd5``), its
+  matrices copied into the stack.
+
+Output matrices: C and D are constant when the output is the state or joint coordinates
+(stored once); frame outputs need the frame Jacobian at every point
+(:func:`pinlin.formulations.independent.output_matrices`, as :func:`pinlin.linearize` does).
+
+The arrays handed to :func:`fill` must be zero-filled (``np.zeros``, a fresh shared-memory
+file): the structural zeros of A and B are not written again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from .chart import PLANAR
+from .coordinates import FREE_FLYER, SPHERICAL
+from .exceptions import ModelError, PinlinError
+from .system import System
+
+#: Points per block of the batch kernel: a block's results (Talos: 65 kB a point) are screened
+#: for NaN and inf while they are still in the cache.
+BLOCK = 32
+
+
+@dataclass(frozen=True)
+class Options:
+    """How the models are computed (picklable: it travels to worker processes).
+
+    Attributes:
+        derivatives: ``"analytic"``, ``"fd3"`` or ``"fd5"``.
+        step: Finite-difference step(s) for fd3/fd5 (see :func:`pinlin.linearize`), or None.
+    """
+
+    derivatives: str = "analytic"
+    step: float | Mapping[str, float] | None = None
+
+
+def batch_path(system: System, options: Options) -> bool:
+    """Whether the batch path applies: analytic derivatives and no steady rotation."""
+    return options.derivatives == "analytic" and system.rotation is None
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Names, shapes and byte offsets of a trajectory's arrays (inputs and results).
+
+    Inputs: ``q`` (N, nq), ``v`` (N, nv), ``u`` (N, nu). Results: ``A`` (N, n, n), ``B``
+    (N, n, nu), ``f0`` (N, n) (its second half is the acceleration a), ``bad`` (N,) (1 where
+    a point failed the screening of :func:`fill`, for :func:`check`), and where they vary from
+    point to point ``C``
+    (N, p, n) (``frames``: frame outputs) and ``y`` (N, p). n = 2 nv.
+    """
+
+    points: int
+    nq: int
+    nv: int
+    nu: int
+    p: int
+    frames: bool
+    has_y: bool
+
+    @classmethod
+    def of(cls, system: System, points: int) -> Layout:
+        spec = system.outputs
+        p = 2 * system.nv if spec is None else len(spec.names)
+        return cls(points, system.nq, system.nv, len(system.actuated), p,
+                   spec is not None and bool(spec.frames), spec is not None)
+
+    def shapes(self, points: int | None = None) -> dict[str, tuple[int, ...]]:
+        N = self.points if points is None else points
+        n = 2 * self.nv
+        out = {"q": (N, self.nq), "v": (N, self.nv), "u": (N, self.nu), "A": (N, n, n),
+               "B": (N, n, self.nu), "f0": (N, n), "bad": (N,)}
+        if self.frames:
+            out["C"] = (N, self.p, n)
+        if self.has_y:
+            out["y"] = (N, self.p)
+        return out
+
+    def offsets(self) -> tuple[dict[str, int], int]:
+        """Byte offset of each array in one buffer (64-byte aligned), and the total size."""
+        offsets, total = {}, 0
+        for name, shape in self.shapes().items():
+            offsets[name] = total
+            total += -(-int(np.prod(shape)) * 8 // 64) * 64
+        return offsets, max(total, 64)
+
+    def views(self, buffer: Any) -> dict[str, np.ndarray]:
+        """The arrays as views of ``buffer`` (at least :meth:`offsets` bytes)."""
+        offsets, _ = self.offsets()
+        return {name: np.ndarray(shape, dtype=np.float64, buffer=buffer, offset=offsets[name])
+                for name, shape in self.shapes().items()}
+
+    def allocate(self, points: int | None = None) -> dict[str, np.ndarray]:
+        """Zero-filled arrays in ordinary memory (``points``: a chunk's size instead of N)."""
+        return {name: np.zeros(shape) for name, shape in self.shapes(points).items()}
+
+
+class _Plan(NamedTuple):
+    """What the batch path needs of a system, fixed for it."""
+
+    lie: tuple[tuple[str, int], ...]  # (kind, idx_v) of the free-flyer, spherical, planar joints
+    spring_cols: np.ndarray  # velocity indices with a spring
+    spring_q: tuple[tuple[int, int, bool], ...]  # (idx_q, idx_v, continuous) per spring
+    damping_cols: np.ndarray
+
+
+def _plan(system: System) -> _Plan:
+    lie = tuple((j.kind, j.idx_v) for j in system.joints.values()
+                if j.kind in (FREE_FLYER, SPHERICAL, PLANAR))
+    springs = np.flatnonzero(system.stiffness)
+    spring_q = tuple((j.idx_q, j.idx_v, j.continuous) for j in system.joints.values()
+                     if j.nv == 1 and system.stiffness[j.idx_v] != 0.0)
+    return _Plan(lie, springs, spring_q, np.flatnonzero(system.damping))
+
+
+def generalized_forces(system: System, q: np.ndarray, v: np.ndarray, u: np.ndarray,
+                       plan: _Plan | None = None) -> np.ndarray:
+    """tau = S u + tau_spring(q) - D v per point (rows) [N*m or N]: the force the scene applies
+    besides gravity and inertia, for ``pin.aba``. Springs act on 1-DoF joints, where
+    ``pin.difference(q_rest, q)`` is q - q_rest (an angle difference on a continuous joint)."""
+    plan = _plan(system) if plan is None else plan
+    tau = np.zeros((q.shape[0], system.nv))
+    tau[:, system.actuated] = u
+    if system.has_damping:
+        tau -= system.damping * v
+    rest = system.q_rest
+    for iq, iv, continuous in plan.spring_q:
+        if continuous:  # (cos, sin): the angle of the relative rotation
+            c0, s0 = rest[iq], rest[iq + 1]
+            c, s = q[:, iq], q[:, iq + 1]
+            dq = np.arctan2(c0 * s - s0 * c, c0 * c + s0 * s)
+        else:
+            dq = q[:, iq] - rest[iq]
+        tau[:, iv] -= system.stiffness[iv] * dq
+    return tau
+
+
+def kinematic_rows(A: np.ndarray, v: np.ndarray, plan: _Plan) -> None:
+    """Write the kinematic block row [K0(v), I] into the zero-filled stack ``A`` (points
+    in the first axis, matching the rows of ``v``): I on every point, and on the free-flyer,
+    spherical and planar joints the block -1/2 ad(v) of :func:`pinlin.chart.kinematic_block`,
+    for all points at once."""
+    h, nv = v.shape
+    if not h:
+        return
+    diagonal = np.arange(nv)
+    A[:, diagonal, nv + diagonal] = 1.0
+    for kind, i in plan.lie:
+        if kind == FREE_FLYER:  # -1/2 [[w^, u^], [0, w^]], v = [u; w]
+            lin, ang = v[:, i:i + 3], v[:, i + 3:i + 6]
+            _skew_into(A[:, i:i + 3, i:i + 3], ang)
+            _skew_into(A[:, i:i + 3, i + 3:i + 6], lin)
+            _skew_into(A[:, i + 3:i + 6, i + 3:i + 6], ang)
+        elif kind == SPHERICAL:  # -1/2 w^
+            _skew_into(A[:, i:i + 3, i:i + 3], v[:, i:i + 3])
+        else:  # planar, v = [vx, vy, wz]: -1/2 [[0, -wz, vy], [wz, 0, -vx], [0, 0, 0]]
+            vx, vy, wz = v[:, i], v[:, i + 1], v[:, i + 2]
+            A[:, i, i + 1] = 0.5 * wz
+            A[:, i, i + 2] = -0.5 * vy
+            A[:, i + 1, i] = -0.5 * wz
+            A[:, i + 1, i + 2] = 0.5 * vx
+
+
+def _skew_into(out: np.ndarray, w: np.ndarray) -> None:
+    """out[k] = -1/2 skew(w[k]) for every k (out: (h, 3, 3) views, zero on the diagonal)."""
+    out[:, 0, 1] = 0.5 * w[:, 2]
+    out[:, 0, 2] = -0.5 * w[:, 1]
+    out[:, 1, 0] = -0.5 * w[:, 2]
+    out[:, 1, 2] = 0.5 * w[:, 0]
+    out[:, 2, 0] = 0.5 * w[:, 1]
+    out[:, 2, 1] = -0.5 * w[:, 0]
+
+
+def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
+         options: Options) -> None:
+    """Compute the models of points ``lo:hi`` into ``arrays`` (:meth:`Layout.views` or
+    :meth:`Layout.allocate`, zero-filled; inputs q, v, u already there) and screen them:
+    ``bad[k]`` = 1 where point k has NaN or inf, or an M^-1 not positive on its diagonal.
+
+    Raises:
+        PinlinError: per-point path only, from :func:`pinlin.linearize` (a singular mass
+            matrix, ...), its message starting with the point's index.
+    """
+    if hi <= lo:
+        return
+    if not batch_path(system, options):
+        _fill_per_point(system, arrays, lo, hi, options)
+        return
+    plan = _plan(system)
+    Q, V, U = arrays["q"][lo:hi], arrays["v"][lo:hi], arrays["u"][lo:hi]
+    tau = generalized_forces(system, Q, V, U, plan)
+    kinematic_rows(arrays["A"][lo:hi], V, plan)
+    arrays["f0"][lo:hi, :system.nv] = V
+    minv_diag = np.empty((min(BLOCK, hi - lo), system.nv))
+    for start in range(lo, hi, BLOCK):  # blocks small enough to screen while in cache
+        stop = min(hi, start + BLOCK)
+        _fill_batch(system, arrays, start, stop, plan, tau[start - lo:stop - lo], minv_diag)
+        if system.outputs is not None:
+            _fill_outputs(system, arrays, start, stop)
+        _screen(system, arrays, start, stop, ~(minv_diag[:stop - start].min(axis=1) > 0.0))
+
+
+def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
+                plan: _Plan, tau: np.ndarray, minv_diag: np.ndarray) -> None:
+    """The lower block rows of A and B and the acceleration of points lo:hi, whose
+    generalized forces are ``tau`` (M^-1's diagonals into ``minv_diag``)."""
+    model, data, nv = system.model, system.data, system.nv
+    Q, V = arrays["q"], arrays["v"]
+    A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
+    Aq, Av, Bv, acc = A[:, nv:, :nv], A[:, nv:, nv:], B[:, nv:], f0[:, nv:]
+    cols = system.actuated_columns
+    ks, cs = plan.spring_cols, plan.damping_cols
+    stiffness, damping = system.stiffness[ks], system.damping[cs]
+    derivatives = pin.computeABADerivatives
+    ddq = data.ddq  # a view of Pinocchio's own vector, rewritten by every call
+    dg = minv_diag[:hi - lo]
+    if not ks.size and not cs.size:
+        for k in range(lo, hi):
+            dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
+            Aq[k] = dq
+            Av[k] = dv
+            Bv[k] = Minv[:, cols]
+            acc[k] = ddq
+            dg[k - lo] = Minv.diagonal()
+        return
+    for k in range(lo, hi):  # springs and damping: d tau / d(dq, v) through M^-1
+        dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
+        Aq[k] = dq
+        Av[k] = dv
+        if ks.size:
+            Aq[k][:, ks] -= Minv[:, ks] * stiffness
+        if cs.size:
+            Av[k][:, cs] -= Minv[:, cs] * damping
+        Bv[k] = Minv[:, cols]
+        acc[k] = ddq
+        dg[k - lo] = Minv.diagonal()
+
+
+def _screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
+            bad: np.ndarray) -> None:
+    """Mark ``bad`` and the non-finite points of lo:hi in ``arrays["bad"]``: one sum per
+    point and matrix (NaN or inf makes it non-finite; so may finite entries that overflow,
+    which :func:`check` tells apart)."""
+    nv = system.nv
+    for key in ("f0", "A", "B", "C"):
+        stack = arrays.get(key)
+        if stack is None or not stack.size:
+            continue
+        part = stack[lo:hi, nv:] if key in ("A", "B") else stack[lo:hi]
+        rows = part.reshape(hi - lo, -1)  # a view: each point's rows are contiguous
+        bad |= ~np.isfinite(np.add.reduce(rows, axis=1))  # no BLAS: no threads woken
+    arrays["bad"][lo:hi] = bad
+
+
+def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
+                    options: Options) -> None:
+    """:func:`pinlin.linearize` at each point of lo:hi (it checks M^-1 and finiteness)."""
+    from .linearization import linearize
+
+    Q, V, U = arrays["q"], arrays["v"], arrays["u"]
+    A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
+    C, y = arrays.get("C"), arrays.get("y")
+    step = options.step if options.derivatives != "analytic" else None
+    for k in range(lo, hi):
+        try:
+            model = linearize(system, q=Q[k], v=V[k], u=U[k], derivatives=options.derivatives,
+                              step=step, estimate_error=False)
+        except PinlinError as exc:
+            raise at_point(exc, k) from None
+        A[k] = model.A
+        B[k] = model.B
+        if model.f0 is not None:
+            f0[k] = model.f0
+        if y is not None:
+            y[k] = model.operating_point.y
+        if C is not None:
+            C[k] = model.C
+
+
+class _State(NamedTuple):
+    q: np.ndarray
+    v: np.ndarray
+
+
+def _fill_outputs(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int) -> None:
+    """C (frame outputs: the frame Jacobian at each point) and the output values y, as
+    :func:`pinlin.formulations.independent.output_matrices` gives them to a single model."""
+    from .formulations.independent import output_matrices
+
+    Q, V, y = arrays["q"], arrays["v"], arrays["y"]
+    C = arrays.get("C")
+    for k in range(lo, hi):
+        Ck, _, _, yk = output_matrices(system, _State(Q[k], V[k]))  # type: ignore[arg-type]
+        y[k] = yk
+        if C is not None:
+            C[k] = Ck
+
+
+def constant_outputs(system: System, q: np.ndarray, v: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """(C, D) of a point, for the outputs whose matrices do not vary along a trajectory."""
+    from .formulations.independent import output_matrices
+
+    C, D, _, _ = output_matrices(system, _State(q, v))  # type: ignore[arg-type]
+    return C, D
+
+
+def at_point(exc: PinlinError, k: int) -> PinlinError:
+    """``exc`` with "trajectory point k: " before its message, same class (the class's own
+    constructor is bypassed: some take several fields)."""
+    new = type(exc).__new__(type(exc))
+    Exception.__init__(new, f"trajectory point {k}: {exc}")
+    new.__dict__.update(exc.__dict__)
+    return new
+
+
+def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
+    """Refuse a stack that :func:`fill` marked bad, naming the first bad point.
+
+    Raises:
+        ModelError: the first bad point's: the mass matrix's own refusal where M(q) is singular
+            (:meth:`System.mass_inverse`), else which matrix is not finite.
+    """
+    for k in (int(i) for i in np.flatnonzero(arrays["bad"])):
+        try:
+            system.mass_inverse(arrays["q"][k])
+        except ModelError as exc:
+            raise at_point(exc, k) from None
+        where = [key for key in ("f0", "A", "B", "C") if key in arrays
+                 and not np.all(np.isfinite(arrays[key][k]))]
+        if where:
+            raise ModelError(f"trajectory point {k}: scene '{system.scene.name}': the linear "
+                             f"model has NaN or inf in {', '.join(where)}; a model with NaN "
+                             "or inf is never returned")
+        # else: finite entries whose sum overflowed, and a mass matrix System accepts
+
+
+__all__ = ["BLOCK", "Layout", "Options", "batch_path", "check", "constant_outputs", "fill",
+           "generalized_forces", "kinematic_rows"]

@@ -1,0 +1,529 @@
+"""Linear models along a trajectory: ``pinlin.linearize_trajectory`` and ``TrajectoryModel``.
+
+A trajectory is N states (q_k, v_k, u_k), optionally at times t_k. Its model is the stack of
+the N affine models of :func:`pinlin.linearize` at those states (independent formulation, open
+chains)::
+
+    x' = f0_k + A_k x + B_k u,   y = C_k x + D_k u,   x = [dq; v] about (q_k, v_k), u about u_k
+
+stored as arrays with the point first: ``A`` (N, n, n), ``B`` (N, n, m), ``C`` (N, p, n),
+``D`` (N, p, m), ``f0`` (N, n); ``model.at(k)`` is the k-th :class:`~pinlin.LinearModel`.
+How the stack is computed (one pass of ``pin.computeABADerivatives`` per point, or
+:func:`pinlin.linearize` per point where that kernel does not apply) is in :mod:`pinlin.batch`;
+worker processes and executors (Dask) in :mod:`pinlin.parallel`; files in
+:mod:`pinlin.trajectory_files`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import scipy.linalg as sla
+
+from .batch import Layout, Options, batch_path, check, constant_outputs, fill
+from .derivatives import BACKENDS, resolve_steps
+from .exceptions import ArgumentError, ModelError, ShapeError
+from .linear_model import LinearModel
+from .operating_point import OperatingPoint
+from .resources import check_memory
+from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
+from .system import System
+
+#: Points per progress report (and per vectorized block) when one process does the work.
+SERIAL_BLOCK = 256
+#: Points per block of the vectorized zero-order hold (bounds its temporary memory).
+ZOH_BLOCK = 128
+#: A configuration's unit-norm parts (quaternions, (cos, sin) pairs) may be off by this.
+NORM_TOLERANCE = 1e-6
+_METHODS = ("zoh", "euler")
+
+
+@dataclass(frozen=True, eq=False)
+class TrajectoryModel:
+    """The linear models of N points of a trajectory, stacked along the first axis.
+
+    Attributes:
+        A, B, C, D: (N, n, n), (N, n, m), (N, p, n), (N, p, m). C and D are broadcast views of
+            one matrix (no memory per point) when the outputs do not depend on the state.
+        f0: (N, n): the drift at each point, x' = f0 + A x + B u (discrete: the state change
+            over one step); zeros at an equilibrium.
+        q: (N, nq) configurations; v: (N, nv) velocities [rad/s or m/s]; u: (N, m) inputs
+            [N*m or N]; a: (N, nv) accelerations at the points [rad/s^2 or m/s^2].
+        t: (N,) times [s], or None.
+        y: (N, p) output values at the points (zeros when the output is the state, as for a
+            single model).
+        state_names, input_names, output_names: Signal names (n, m, p).
+        name: Scene name.
+        info: Metadata: formulation, derivatives, effects, base, points, path ("batch": one
+            ``computeABADerivatives`` per point; "per point": :func:`pinlin.linearize`).
+        dt: Sample time [s] of discrete models; 0 for continuous ones.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    f0: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    u: np.ndarray
+    a: np.ndarray
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    t: np.ndarray | None = None
+    y: np.ndarray | None = None
+    name: str = ""
+    info: Mapping[str, Any] = field(default_factory=dict)
+    dt: float = 0.0
+
+    def __post_init__(self) -> None:
+        names = {}
+        for key in ("state_names", "input_names", "output_names"):
+            value = getattr(self, key)
+            if isinstance(value, str) or not isinstance(value, Sequence | np.ndarray) or \
+                    not all(isinstance(s, str) for s in value):
+                raise ArgumentError(key, "expected a sequence of names (strings)")
+            names[key] = tuple(value)
+            if len(set(names[key])) != len(names[key]):
+                raise ModelError(f"trajectory model '{self.name}': {key} are not distinct")
+            object.__setattr__(self, key, names[key])
+        n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
+        N = np.shape(self.A)[0] if np.ndim(self.A) == 3 else -1
+        nv = np.shape(self.v)[-1] if np.ndim(self.v) == 2 else -1
+        shapes = {"A": (N, n, n), "B": (N, n, m), "C": (N, p, n), "D": (N, p, m),
+                  "f0": (N, n), "v": (N, nv), "u": (N, m), "a": (N, nv), "t": (N,),
+                  "y": (N, p), "q": (N, np.shape(self.q)[-1] if np.ndim(self.q) == 2 else -1)}
+        for key, shape in shapes.items():
+            value = getattr(self, key)
+            if value is None and key in ("t", "y"):
+                continue
+            arr = _stack(key, value, shape)
+            object.__setattr__(self, key, arr)
+        if not isinstance(self.name, str):
+            raise ArgumentError("name", f"expected a str, got {type(self.name).__name__}")
+        dt = self.dt
+        if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
+                or not (math.isfinite(dt) and dt >= 0):
+            raise ArgumentError("dt", f"expected a sample time >= 0 [s], got {dt!r}")
+        object.__setattr__(self, "dt", float(dt))
+        if not isinstance(self.info, Mapping):
+            raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
+        object.__setattr__(self, "info", dict(self.info))
+
+    @classmethod
+    def trusted(cls, **fields: Any) -> TrajectoryModel:
+        """A model from code that built every field consistent (read-only float64 arrays,
+        tuples of distinct names): no checks."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
+
+    # ----------------------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return self.A.shape[0]
+
+    def __repr__(self) -> str:
+        kind = f"discrete dt = {self.dt:g} s" if self.dt else "continuous"
+        return (f"TrajectoryModel({self.name!r}: {len(self)} points, {len(self.state_names)} "
+                f"states, {len(self.input_names)} inputs, {len(self.output_names)} outputs, "
+                f"{kind})")
+
+    @property
+    def is_discrete(self) -> bool:
+        return self.dt > 0
+
+    def at(self, k: int) -> LinearModel:
+        """The model of point ``k`` (negative: from the end) as a :class:`LinearModel`: what
+        :func:`pinlin.linearize` gives at (q[k], v[k], u[k]), to rounding, without the
+        second-order matrices (M, C_damp, K, Bu are None). Its operating point carries q, v,
+        u, a and y; its ``residual`` (M a0) is None: a batch does not compute M.
+
+        Raises:
+            ArgumentError: ``k`` is not an integer in [-N, N).
+        """
+        N = len(self)
+        if isinstance(k, bool) or not isinstance(k, int | np.integer):
+            raise ArgumentError("k", f"expected a point index (an integer), got "
+                                     f"{type(k).__name__}")
+        if not -N <= k < N:
+            raise ArgumentError("k", f"expected a point index in [0, {N}) (or from the end, "
+                                     f"down to -{N}), got {k}")
+        k = int(k) % N
+        q, v, u, a = self.q[k], self.v[k], self.u[k], self.a[k]
+        moving = bool(v.any() or a.any())
+        when = f" (t = {self.t[k]:.6g} s)" if self.t is not None else ""
+        op = OperatingPoint.trusted(
+            q=q, v=v, u=u, a=a, residual=None, equilibrium=not moving, tolerance=0.0,
+            y=None if self.y is None else self.y[k], lam=None, lam_names=(),
+            notes=(f"point {k} of {N} of a trajectory{when}: the state is given; the "
+                   "residual M a0 is not computed in a batch (a0 is operating_point.a)",))
+        info = {**self.info, "point": k}
+        if self.t is not None:
+            info["t"] = float(self.t[k])
+        return LinearModel.assembled(
+            A=self.A[k], B=self.B[k], C=self.C[k], D=self.D[k], state_names=self.state_names,
+            input_names=self.input_names, output_names=self.output_names, E=None, F=None,
+            M=None, C_damp=None, K=None, Bu=None, operating_point=op, G=None, name=self.name,
+            info=info, f0=self.f0[k] if moving else None, dt=self.dt)
+
+    def discretize(self, dt: float, method: str = "zoh") -> TrajectoryModel:
+        """The discrete models over sample time ``dt`` [s], point by point, as
+        :meth:`LinearModel.discretize` gives them (:mod:`pinlin.discretization`), vectorized:
+        ``"zoh"`` by batched matrix exponentials, ``"euler"`` (semi-implicit: v, then dq with
+        the new v) by batched products. C, D, the states and ``a`` are unchanged.
+
+        Raises:
+            ArgumentError: ``dt`` not a positive finite number [s], an unknown method, or
+                models that are already discrete.
+        """
+        if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
+                or not (math.isfinite(dt) and dt > 0):
+            raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r}")
+        if not isinstance(method, str) or method not in _METHODS:
+            raise ArgumentError("method", f"expected one of {', '.join(map(repr, _METHODS))}, "
+                                          f"got {method!r}")
+        if self.dt:
+            raise ArgumentError("model", f"trajectory model '{self.name}' is already discrete "
+                                         f"(dt = {self.dt:g} s)")
+        dt = float(dt)
+        A_d, B_d, f_d = (_zoh if method == "zoh" else _euler)(self.A, self.B, self.f0, dt)
+        for arr in (A_d, B_d, f_d):
+            arr.setflags(write=False)
+        return TrajectoryModel.trusted(**{
+            **self.__dict__, "A": A_d, "B": B_d, "f0": f_d, "dt": dt,
+            "info": {**self.info, "discretization": {"method": method, "dt": dt}}})
+
+    # ----------------------------------------------------------------------------------------
+    def save(self, path: str | Path) -> Path:
+        """Write the models as ``.npz`` or MATLAB ``.mat`` (atomically: a temporary file beside
+        it, renamed into place). :meth:`load` reads it back; nothing in it is a pickle.
+
+        Raises:
+            ArgumentError: ``path`` is not a path.
+            ModelFileError: another suffix, or the file cannot be written.
+        """
+        from .trajectory_files import save_trajectory_model
+
+        return save_trajectory_model(self, path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> TrajectoryModel:
+        """Read models written by :meth:`save` (never unpickles anything).
+
+        Raises:
+            ArgumentError: ``path`` is not a path.
+            ModelFileError: missing file, unknown suffix, or content that is not a trajectory
+                model pinlin wrote (the message names the file and what is wrong).
+        """
+        from .trajectory_files import load_trajectory_model
+
+        return load_trajectory_model(path, cls)
+
+
+def _stack(key: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a read-only float64 array of ``shape`` (-1: free), finite."""
+    if np.iscomplexobj(value):
+        raise ArgumentError(key, "expected real numbers, got complex entries")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ArgumentError(key, f"expected an array of real numbers: {exc}") from None
+    want = tuple(arr.shape[i] if s == -1 and i < arr.ndim else s for i, s in enumerate(shape))
+    if arr.shape != want or any(s < 0 for s in want):
+        raise ShapeError(f"{key} must have shape {_shape_text(shape)}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ModelError(f"{key} has NaN or inf; a trajectory model with NaN or inf is never "
+                         "built")
+    if arr is not value or arr.flags.writeable:  # the model owns its arrays
+        arr = arr.copy()
+        arr.setflags(write=False)
+    return arr
+
+
+def _shape_text(shape: tuple[int, ...]) -> str:
+    return "(" + ", ".join("?" if s < 0 else str(s) for s in shape) + ")"
+
+
+def _zoh(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Van Loan's augmented exponential, expm([[A, B, f0], [0, 0, 0]] dt), per point."""
+    N, n, m = B.shape
+    A_d, B_d, f_d = np.empty_like(A), np.empty_like(B), np.empty_like(f0)
+    for lo in range(0, N, ZOH_BLOCK):
+        hi = min(N, lo + ZOH_BLOCK)
+        aug = np.zeros((hi - lo, n + m + 1, n + m + 1))
+        aug[:, :n, :n] = A[lo:hi]
+        aug[:, :n, n:n + m] = B[lo:hi]
+        aug[:, :n, -1] = f0[lo:hi]
+        phi = sla.expm(aug * dt)
+        A_d[lo:hi], B_d[lo:hi], f_d[lo:hi] = phi[:, :n, :n], phi[:, :n, n:n + m], phi[:, :n, -1]
+    return A_d, B_d, f_d
+
+
+def _euler(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The semi-implicit Euler map of :mod:`pinlin.discretization`, for stacks."""
+    nv = A.shape[1] // 2
+    Aqq, Aqv, Avq, Avv = A[:, :nv, :nv], A[:, :nv, nv:], A[:, nv:, :nv], A[:, nv:, nv:]
+    Bv = B[:, nv:]
+    eye = np.eye(nv)
+    A_d = np.empty_like(A)
+    A_d[:, :nv, :nv] = eye + dt * Aqq + dt * dt * (Aqv @ Avq)
+    A_d[:, :nv, nv:] = dt * (Aqv @ (eye + dt * Avv))
+    A_d[:, nv:, :nv] = dt * Avq
+    A_d[:, nv:, nv:] = eye + dt * Avv
+    B_d = np.concatenate([dt * dt * (Aqv @ Bv), dt * Bv], axis=1)
+    f_d = np.concatenate([dt * f0[:, :nv] + dt * dt * (Aqv @ f0[:, nv:, None])[..., 0],
+                          dt * f0[:, nv:]], axis=1)
+    return A_d, B_d, f_d
+
+
+# --------------------------------------------------------------------------------------------
+# linearize_trajectory
+
+
+def _system(scene: object) -> System:
+    """The system of a Scene, a System, or a scene file / URDF / bundled scene / robot name
+    (as :func:`pinlin.linearize` accepts)."""
+    if isinstance(scene, System):
+        return scene
+    if isinstance(scene, Scene):
+        return scene.system
+    if isinstance(scene, str | PathLike):
+        return Scene.resolve(scene).system
+    raise ArgumentError("scene", "expected a pinlin.Scene, a pinlin.System, or a scene file, "
+                                 "URDF, bundled scene or robot name (str or path), got "
+                                 f"{type(scene).__name__}")
+
+
+def _rows(name: str, value: object, width: int, what: str, points: int | None,
+          limit: float) -> np.ndarray:
+    """``value`` as a C-ordered (N, width) float64 copy: finite, |x| <= limit, N rows (or
+    ``points`` rows when given)."""
+    expected = f"an (N, {width}) array ({what}, one row per point)"
+    try:
+        arr = np.array(value, dtype=float, order="C")
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentError(name, f"expected {expected}, got {value!r:.80}") from None
+    if arr.ndim == 1 and width == 0 and points is not None and arr.size == 0:
+        arr = arr.reshape(points, 0)
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise ShapeError(f"argument '{name}' must have shape (N, {width}) ({what}, one row "
+                         f"per point), got shape {arr.shape}")
+    if points is not None and arr.shape[0] != points:
+        raise ShapeError(f"argument '{name}' has {arr.shape[0]} rows, argument 'q' has "
+                         f"{points}: one row per point in each")
+    if arr.shape[0] == 0:
+        raise ArgumentError(name, "expected at least one point (row), got none")
+    finite = np.isfinite(arr)
+    if not finite.all():
+        k, j = (int(i) for i in np.argwhere(~finite)[0])
+        raise ArgumentError(name, f"row {k} has NaN or inf (column {j})")
+    big = np.abs(arr) > limit
+    if big.any():
+        k, j = (int(i) for i in np.argwhere(big)[0])
+        raise ArgumentError(name, f"row {k} has an entry of size {abs(arr[k, j]):.3g} "
+                                  f"(column {j}); {what} are limited to |x| <= {limit:g}")
+    return arr
+
+
+def _check_normalized(system: System, q: np.ndarray) -> None:
+    """Every row's unit-norm parts (quaternions of free-flyer and spherical joints, (cos, sin)
+    of continuous and planar joints) within :data:`NORM_TOLERANCE`, vectorized; other joints
+    whose configuration is not a vector space row by row with ``pin.isNormalized``."""
+    model = system.model
+    other = False
+    for j in system.joints.values():
+        if j.nq == j.nv:
+            continue
+        start = {"JointModelFreeFlyer": 3, "JointModelSpherical": 0,
+                 "JointModelPlanar": 2}.get(j.kind, 0 if j.continuous else None)
+        if start is None:
+            other = True
+            continue
+        part = q[:, j.idx_q + start:j.idx_q + j.nq]
+        norms = np.sqrt(np.einsum("ij,ij->i", part, part))
+        bad = np.abs(norms - 1.0) > NORM_TOLERANCE
+        if bad.any():
+            k = int(np.argmax(bad))
+            kind = "quaternion" if part.shape[1] == 4 else "(cos, sin) pair"
+            raise ArgumentError("q", f"row {k} is not normalized: the {kind} of joint "
+                                     f"'{j.name}' (columns {j.idx_q + start}-"
+                                     f"{j.idx_q + j.nq - 1}) has norm {norms[k]:.9g}; it must "
+                                     "have unit norm (pinlin never normalizes for you)")
+    if other:
+        for k, row in enumerate(q):
+            if not pin.isNormalized(model, row, NORM_TOLERANCE):
+                raise ArgumentError("q", f"row {k} is not normalized (pin.isNormalized)")
+
+
+def _times(t: object, points: int) -> np.ndarray | None:
+    if t is None:
+        return None
+    try:
+        arr = np.array(t, dtype=float).reshape(-1) if np.ndim(t) <= 1 else None
+    except (TypeError, ValueError, OverflowError):
+        arr = None
+    if arr is None or arr.shape != (points,):
+        raise ArgumentError("t", f"expected {points} times [s] (one per point), got "
+                                 f"{t!r:.80}")
+    if not np.isfinite(arr).all():
+        raise ArgumentError("t", f"entry {int(np.argmin(np.isfinite(arr)))} is NaN or inf")
+    step = np.diff(arr)
+    if (step <= 0).any():
+        k = int(np.argmax(step <= 0)) + 1
+        raise ArgumentError("t", f"times must increase strictly: t[{k}] = {arr[k]:.9g} s "
+                                 f"after t[{k - 1}] = {arr[k - 1]:.9g} s")
+    arr.setflags(write=False)
+    return arr
+
+
+def _positive_int(name: str, value: object, allow_none: bool = False) -> int | None:
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ArgumentError(name, f"expected a whole number >= 1, got {value!r}")
+    return int(value)
+
+
+def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: np.ndarray,
+                         u: np.ndarray, t: np.ndarray | None = None, *, workers: int = 1,
+                         executor: Executor | None = None, derivatives: str = "analytic",
+                         chunk: int | None = None,
+                         step: float | Mapping[str, float] | None = None,
+                         progress: Callable[[int, int], None] | None = None
+                         ) -> TrajectoryModel:
+    """Linear models of a scene at N states, stacked (see :class:`TrajectoryModel`).
+
+    Point k is the model :func:`pinlin.linearize` gives at ``q=q[k], v=v[k], u=u[k]``
+    (independent formulation; open chains). With analytic derivatives and no steady rotation
+    the stack comes from one ``pin.computeABADerivatives`` per point written straight into
+    the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize` per point.
+
+    Args:
+        scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
+            robot name.
+        q: (N, nq) configurations (normalized quaternions and (cos, sin) pairs) [m, rad].
+        v: (N, nv) velocities [rad/s or m/s].
+        u: (N, nu) inputs [N*m or N], in the order of the model's ``input_names``.
+        t: (N,) times [s], strictly increasing, kept with the models; or None.
+        workers: Processes sharing the work on this machine (>= 1); they write into shared
+            memory (:mod:`pinlin.parallel`). Where other threads run, the pool is started by
+            ``forkserver``, which imports the main script: guard it with
+            ``if __name__ == "__main__":`` as multiprocessing requires.
+        executor: A ``concurrent.futures.Executor`` (a Dask cluster's
+            ``client.get_executor()``) that runs chunks of points where it likes; not with
+            ``workers > 1``.
+        derivatives: ``"analytic"``, ``"fd3"`` or ``"fd5"``.
+        chunk: Points per task for workers and executors (default: about 4 tasks per worker,
+            16 tasks for an executor).
+        step: Finite-difference step(s) for fd3/fd5, as for :func:`pinlin.linearize`.
+        progress: Called as ``progress(done, total)`` [points] as the work advances.
+
+    Raises:
+        ShapeError: an array of the wrong shape (the message names the argument).
+        ArgumentError: NaN, inf or out-of-range entries, configurations that are not
+            normalized (naming the argument and the first bad row), or a bad option.
+        ModelError: a scene with loops or mimic couplings, or a point where the model cannot
+            be built (a singular mass matrix), naming the first such point.
+        ResourceError: the stacked models would exceed the memory limit
+            (:func:`pinlin.set_memory_limit`).
+    """
+    system = _system(scene)
+    if system.constraints:
+        raise ModelError(f"scene '{system.scene.name}' has loops or mimic couplings: "
+                         "linearize_trajectory handles open chains (independent formulation) "
+                         "so far; trajectories of closed chains are not supported yet")
+    if not isinstance(derivatives, str) or derivatives not in BACKENDS:
+        raise ArgumentError("derivatives", f"expected one of "
+                                           f"{', '.join(map(repr, BACKENDS))}, got "
+                                           f"{derivatives!r}")
+    if step is not None:
+        if derivatives == "analytic":
+            raise ArgumentError("step", "a finite-difference step applies to derivatives "
+                                        "'fd3' and 'fd5'; the analytic derivatives take none")
+        resolve_steps(derivatives, step)
+    workers = _positive_int("workers", workers)
+    chunk = _positive_int("chunk", chunk, allow_none=True)
+    if executor is not None and not isinstance(executor, Executor):
+        raise ArgumentError("executor", "expected a concurrent.futures.Executor (for Dask: "
+                                        f"client.get_executor()), got {type(executor).__name__}")
+    if executor is not None and workers > 1:
+        raise ArgumentError("executor", "give workers > 1 (processes on this machine) or an "
+                                        "executor, not both")
+    if progress is not None and not callable(progress):
+        raise ArgumentError("progress", "expected a function progress(done, total)")
+    nu = len(system.actuated)
+    Q = _rows("q", q, system.nq, "configurations", None, POSITION_LIMIT)
+    N = Q.shape[0]
+    V = _rows("v", v, system.nv, "velocities", N, COEFFICIENT_LIMIT)
+    U = _rows("u", u, nu, "inputs", N, COEFFICIENT_LIMIT)
+    _check_normalized(system, Q)
+    T = _times(t, N)
+
+    options = Options(derivatives, step)
+    layout = Layout.of(system, N)
+    check_memory(layout.offsets()[1], f"scene '{system.scene.name}': the models of {N} points",
+                 "A, B and f0 stacked, 8 bytes a number")
+    if executor is not None:
+        from .parallel import run_executor
+
+        arrays = run_executor(system, layout, Q, V, U, options, executor, chunk, progress)
+    elif workers > 1:
+        from .parallel import run_processes
+
+        arrays = run_processes(system, layout, Q, V, U, options, workers, chunk, progress)
+    else:
+        arrays = {**layout.allocate(), "q": Q, "v": V, "u": U}
+        for lo in range(0, N, SERIAL_BLOCK):
+            hi = min(N, lo + SERIAL_BLOCK)
+            fill(system, arrays, lo, hi, options)
+            if progress is not None:
+                progress(hi, N)
+    check(system, arrays)
+    return _assemble(system, arrays, layout, T, options)
+
+
+def _assemble(system: System, arrays: Mapping[str, np.ndarray], layout: Layout,
+              t: np.ndarray | None, options: Options) -> TrajectoryModel:
+    N, nv, p, nu = layout.points, layout.nv, layout.p, layout.nu
+    Q, V = arrays["q"], arrays["v"]
+    C = arrays.get("C")
+    if C is None:
+        C0, _ = constant_outputs(system, Q[0], V[0])
+        C = np.broadcast_to(C0, (N, p, 2 * nv))
+    D = np.broadcast_to(np.zeros((p, nu)), (N, p, nu))
+    y = arrays.get("y")
+    if y is None:
+        y = np.broadcast_to(np.zeros(p), (N, p))
+    for arr in (arrays["A"], arrays["B"], arrays["f0"], Q, V, arrays["u"], C, y):
+        arr.setflags(write=False)
+    spec = system.outputs
+    info: dict[str, Any] = {
+        "formulation": "independent",
+        "derivatives": options.derivatives,
+        "effects": list(system.effects_in_play),
+        "base": "free" if system.base_joint else "fixed",
+        "points": N,
+        "path": "batch" if batch_path(system, options) else "per point",
+    }
+    if options.derivatives != "analytic":
+        info["step"] = resolve_steps(options.derivatives, options.step)
+    return TrajectoryModel.trusted(
+        A=arrays["A"], B=arrays["B"], C=C, D=D, f0=arrays["f0"], q=Q, v=V, u=arrays["u"],
+        a=arrays["f0"][:, nv:], t=t, y=y, state_names=system.state_names,
+        input_names=system.input_names,
+        output_names=system.state_names if spec is None else spec.names,
+        name=system.scene.name, info=info, dt=0.0)
+
+
+__all__ = ["TrajectoryModel", "linearize_trajectory"]
