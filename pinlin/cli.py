@@ -219,7 +219,7 @@ def _print_operating_point(model, system) -> None:
     if op.lam is not None:
         for name, lam in zip(op.lam_names, op.lam, strict=True):
             print(f"  lam[{name}] = {lam:.6g}")
-    worst = float(np.abs(op.residual).max(initial=0.0))
+    worst = float(np.abs(op.residual).max(initial=0.0)) if op.residual is not None else 0.0
     state = "equilibrium" if op.equilibrium else "NOT an equilibrium"
     print(f"  residual max |r| = {worst:.3e} (tolerance {op.tolerance:.1e}): {state}")
     for note in op.notes:

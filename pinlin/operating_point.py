@@ -31,7 +31,8 @@ class OperatingPoint:
         v: Velocity, size nv [rad/s or m/s].
         u: Inputs, generalized forces on the actuated coordinates [N*m or N].
         a: Acceleration at (q, v, u), size nv: zero at an equilibrium.
-        residual: Generalized force the inputs cannot supply, per coordinate [N*m or N].
+        residual: Generalized force the inputs cannot supply, per coordinate [N*m or N]; None
+            where it was not computed (the points of a linearized trajectory).
         equilibrium: Whether the residual is zero within ``tolerance``.
         tolerance: Residual tolerance used [N*m or N].
         y: Output values at the point (frame positions [m], joint values).
@@ -46,7 +47,7 @@ class OperatingPoint:
     v: np.ndarray
     u: np.ndarray
     a: np.ndarray
-    residual: np.ndarray
+    residual: np.ndarray | None
     equilibrium: bool
     tolerance: float
     y: np.ndarray | None = None

@@ -14,8 +14,10 @@ import pinlin
 
 def test_threads_get_the_serial_results():
     """8 threads linearize 300 states of a floating Talos (moving, so that every kernel runs;
-    nv = 38, long kernels that release the GIL) of one shared scene; every A and B equals
-    the serial one bit for bit. With one shared pin.Data this went silently wrong (7 of 1000
+    nv = 38) of one shared scene; every A and B equals the serial one bit for bit. The
+    threads interleave between the Pinocchio calls of one linearization, each of which reads
+    what the previous one left in the Data (computeABADerivatives itself keeps the GIL). With
+    one shared pin.Data this went silently wrong (7 of 1000
     ur5 matrices with 8 threads; planted back, this test failed in 10 of 10 runs)."""
     scene = pinlin.Scene.from_robot("talos")
     system = scene.system
