@@ -41,6 +41,7 @@ from .simulation import Simulation, simulate
 from .system import System
 from .trajectory import TrajectoryModel, linearize_trajectory
 from .trajectory_files import trajectory_columns
+from .validity import Validity, validity
 
 __version__ = "0.1.0"
 
@@ -78,6 +79,7 @@ __all__ = [
     "UnknownNameError",
     "UnknownRobotError",
     "UrdfError",
+    "Validity",
     "__version__",
     "bode",
     "frequency_response",
@@ -93,4 +95,5 @@ __all__ = [
     "simulate",
     "step",
     "trajectory_columns",
+    "validity",
 ]

@@ -1,0 +1,472 @@
+"""``pinlin.validity``: how large a motion the linear model of a scene stays accurate for.
+
+For each non-rigid mode of the linear model (and for a direction the user gives), the scene's
+nonlinear motion (:func:`pinlin.simulate`) and the linear model's (:func:`pinlin.response`,
+``method="exact"``) start from the same initial deviation ``a d`` for growing amplitudes a and
+are compared over a horizon T.
+
+**Initial state d.** The right eigenvector r of A, scaled so that its largest position entry
+is 1 (phase and size), gives d = Re(r) / max_j |Re(r_qj)|: the largest joint excursion of a d
+is exactly a [rad or m] (entries of mixed units, a floating base's [m] and [rad], are compared
+as numbers). An undamped mode starts from rest in its shape; a damped or real one with the
+velocity Re(lambda r_q). A direction (a coordinate name or a state vector) is scaled the same
+way; one with no position part by its largest velocity (a then in [rad/s or m/s]).
+
+**Horizon T** (lambda = sigma + i w of the mode, ``rigid_tol`` that of :func:`pinlin.modal`):
+
+- oscillatory (|w| > rigid_tol): ``periods`` periods, T = periods 2 pi / |w|, and at most
+  ``time_constants / sigma`` when unstable (sigma > 0) or :data:`DECAY` / |sigma| when damped;
+- real: T = time_constants / |sigma| (at most :data:`SLOW_LIMIT` periods of the fastest mode).
+
+Why: an unstable solution e^{sigma t} a d leaves the neighbourhood the amplitude names (an
+inverted pendulum falls); ending when the linear envelope has grown by e^time_constants (e^2 =
+7.4 by default) keeps the whole comparison within ~7.4 a of the point, so the error still
+measures the model at amplitude a, not where the fall ends. A stable real mode is compared
+until it has decayed by the same factor, a damped one until its envelope is below e^-DECAY =
+5e-5 of its start (under any useful tolerance; nothing beyond changes the maximum). A direction
+mixes modes: T is the longest horizon of the model's non-rigid modes, capped by the shortest
+horizon of an unstable one (or ``horizon`` [s], which overrides every case).
+
+**Error.** With z_nl(t; x0) the nonlinear motion in the linear model's coordinates
+(``Simulation.z``: [dq; v], or [dz; dz'] for a mechanism) and x_lin(t; x0) the linear one::
+
+    Dnl(t)  = z_nl(t; a d) - z_nl(t; 0)
+    Dlin(t) = x_lin(t; a d) - x_lin(t; 0) = a e^{A t} d
+    e_q(a)  = max_t max_j |Dnl_qj - Dlin_qj| / max_t max_j |Dlin_qj|    (positions [rad or m])
+    e_v(a)  = the same over the velocities [rad/s or m/s]
+    e(a)    = max(e_q, e_v)                                              (the relative error)
+
+At an equilibrium both reference motions (from x0 = 0) are zero (the simulated one stays at
+its rounding level, reported as ``reference_drift``) and e is the plain relative error. Away
+from one (f0 != 0) both drift: subtracting them compares the model's response to the
+perturbation, which is what its A claims to predict. The maxima are over the sample times:
+:data:`SAMPLES_PER_PERIOD` per period of the fastest oscillation, so the sampled maximum of an
+error oscillating at that period is below the true one by at most 1 - cos(pi / 100) = 5e-4 of
+it.
+
+**Radius.** The largest amplitude up to which every tabulated error is within ``tolerance``:
+between the last amplitude within it and the first beyond, a is interpolated on log-log axes
+(the error is locally a power law e ~ a^(p-1)), simulated there, and the bracket narrowed by
+the same secant step (aimed at 0.985 tolerance) until 0.97 tolerance <= e <= tolerance (at
+most :data:`MAX_REFINE` steps; then the largest amplitude measured within the tolerance). With
+e ~ a^(p-1) near the radius, that 3% band in e is a band of 3% / (p - 1) in the radius: the
+radius lies within 3% / (p - 1) below the exact crossing (1.5% for the pendulum's p = 3).
+Bisection would need ~log2(2.15 / 0.015) = 7 simulations for the same; the secant, 1 or 2. The
+default amplitudes are :data:`DEFAULT_AMPLITUDES`; the sweep stops once e exceeds
+:data:`STOP_FACTOR` tolerance, after at least :data:`ORDER_POINTS` amplitudes (given
+amplitudes are all measured). A failed simulation (a mechanism past a toggle position) counts
+as beyond the tolerance, its message kept.
+
+**Order.** ``slope`` p = d log E / d log a of the error in the state's units, E = e max|Dlin|;
+since max|Dlin| is proportional to a, p = 1 + the log-log slope of e, fitted by least squares
+over the :data:`ORDER_POINTS` smallest amplitudes whose e is above the integration noise
+(:func:`_floor`): the order as a -> 0, which is what tells the cases apart (the local slope
+grows with a as higher-order terms take over, e.g. from 2 to 2.5 for the four-bar by a = 0.05):
+
+- p ~ 2: quadratic terms, the general smooth system about an equilibrium;
+- p ~ 3: no quadratic terms along the motion (an odd nonlinearity: a pendulum's sin(theta)
+  about its hanging or inverted position: its period error gives e = 2 pi periods a^2 / 16);
+- p ~ 1: the linear model misses a first-order effect: the point is not an equilibrium of the
+  dynamics simulated (f0 != 0, an input u0 that does not hold q0), ``diagnosis`` says so.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from .arrays import read_only
+from .exceptions import ArgumentError, ModelError, PinlinError
+from .linear_model import LinearModel
+from .linearization import _system, linearize
+from .modal import ModalAnalysis, modal
+from .response import response
+from .simulation import simulate
+from .system import System
+from .validity_report import Bound, Case, Validity, notes
+
+#: Default amplitudes [rad or m]: 1 mrad to 1 rad, a factor 10^(1/3) = 2.15 apart.
+DEFAULT_AMPLITUDES = tuple(float(a) for a in np.geomspace(1e-3, 1.0, 10))
+#: Samples per period of the fastest oscillation (max-over-time undershoot <= 5e-4).
+SAMPLES_PER_PERIOD = 100
+#: Samples over the horizon of a real mode (and at least that many for any case).
+MIN_SAMPLES = 401
+#: At most this many samples (a direction mixing slow and fast modes may get fewer per period).
+MAX_SAMPLES = 20001
+#: A damped oscillation is compared until its envelope has decayed by e^-DECAY.
+DECAY = 10.0
+#: A real mode's horizon is at most SLOW_LIMIT periods of the model's fastest mode (a real
+#: eigenvalue just above rigid_tol would otherwise ask for ~1e6 of the solver's steps).
+SLOW_LIMIT = 1000.0
+#: The default sweep stops beyond STOP_FACTOR * tolerance.
+STOP_FACTOR = 10.0
+MAX_REFINE = 4
+#: The refinement aims at TARGET tolerance and accepts ACCEPT tolerance <= e <= tolerance.
+TARGET, ACCEPT = 0.985, 0.97
+#: Relative errors below NOISE_RTOL rtol + NOISE_ATOL atol / a are integration noise
+#: (:func:`_floor`); the order is fitted over the ORDER_POINTS smallest amplitudes above it,
+#: which the default sweep always measures.
+NOISE_RTOL, NOISE_ATOL = 1e3, 1e2
+ORDER_POINTS = 3
+#: Errors above SATURATION are left out of the order when two others remain (e ~ 1: the
+#: motions have parted, e stops growing).
+SATURATION = 0.3
+#: Orders below FIRST_ORDER say "first order"; from THIRD_ORDER up "third order".
+FIRST_ORDER, THIRD_ORDER = 1.5, 2.5
+_EXCLUDED_KINDS = ("rigid", "constraint")
+
+
+# --------------------------------------------------------------------------------------------
+def _positive(name: str, value: object, unit: str, upper: float = math.inf) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ArgumentError(name, f"expected a number {unit}, got {type(value).__name__}")
+    if not (math.isfinite(value) and 0.0 < value < upper):
+        bound = f" and < {upper:g}" if math.isfinite(upper) else ""
+        raise ArgumentError(name, f"expected a finite number > 0{bound} {unit}, got {value!r}")
+    return float(value)
+
+
+def _amplitudes(amplitudes: object) -> tuple[np.ndarray, bool]:
+    if amplitudes is None:
+        return np.array(DEFAULT_AMPLITUDES), True
+    try:
+        arr = np.array(amplitudes, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ArgumentError("amplitudes", "expected a sequence of amplitudes [rad or m], got "
+                                          f"{type(amplitudes).__name__}") from None
+    if arr.size == 0:
+        raise ArgumentError("amplitudes", "expected at least one amplitude [rad or m], got an "
+                                          "empty sequence (or None for the default sweep)")
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+        raise ArgumentError("amplitudes", f"expected finite amplitudes > 0 [rad or m], got "
+                                          f"{arr[~(np.isfinite(arr) & (arr > 0))][:3]}")
+    return np.unique(arr), False
+
+
+def _scene_system(scene: object) -> System:
+    if isinstance(scene, LinearModel):
+        if "domain" in scene.info:
+            raise ModelError(f"model '{scene.name}' is a linear graph: it has no nonlinear "
+                             "multibody motion to compare with; validity takes a scene")
+        raise ArgumentError("scene", f"expected a scene, got the LinearModel '{scene.name}': "
+                                     "validity linearizes and simulates the scene itself; pass "
+                                     "the scene (file or name)")
+    from .graph import Graph
+
+    if isinstance(scene, Graph):
+        raise ModelError("a linear graph has no nonlinear multibody motion to compare with; "
+                         "validity takes a scene")
+    return _system(scene)
+
+
+def _select(ma: ModalAnalysis, modes: object, given_direction: bool) -> list[int]:
+    """Eigenvalue indices of the modes to sweep (one per conjugate pair)."""
+    keep = ma.modes()
+    usable = [i for i in keep if ma.kind(i) not in _EXCLUDED_KINDS]
+    if modes is None:
+        if not usable and not given_direction:
+            raise ModelError(f"model '{ma.model.name}' has no non-rigid mode (all "
+                             f"{len(ma.eigenvalues)} eigenvalues rigid): give direction= "
+                             "and horizon=")
+        return [] if given_direction else usable
+    items = [modes] if isinstance(modes, int | np.integer) else modes
+    if isinstance(items, str) or not isinstance(items, Sequence | np.ndarray):
+        raise ArgumentError("modes", f"expected eigenvalue indices (ints), got "
+                                     f"{type(modes).__name__}")
+    chosen: list[int] = []
+    for k in items:
+        if isinstance(k, bool) or not isinstance(k, int | np.integer):
+            raise ArgumentError("modes", f"expected eigenvalue indices (ints), got {k!r:.40}")
+        if not 0 <= k < len(ma.eigenvalues):
+            raise ArgumentError("modes", f"no mode {k}: expected one of {usable} (indices of "
+                                         "pinlin.modal(model).eigenvalues, one per pair)")
+        i = int(k) if k in keep else int(k) - 1          # a conjugate: its pair's first
+        if i not in usable:
+            raise ArgumentError("modes", f"mode {k} is {ma.kind(i)}: nothing oscillates or "
+                                         f"returns about the point; expected one of {usable}"
+                                         " (or direction=)")
+        if i not in chosen:
+            chosen.append(i)
+    if not chosen and not given_direction:
+        raise ArgumentError("modes", f"expected at least one eigenvalue index (one of "
+                                     f"{usable}) or a direction=, got none")
+    return chosen
+
+
+def _direction(model: LinearModel, direction: object) -> tuple[np.ndarray, str, str]:
+    """(d (2n,), label, unit) of a coordinate name or a state vector."""
+    n, names = model.n_states // 2, model.state_names
+    d = np.zeros(2 * n)
+    if isinstance(direction, str):
+        name = direction if direction[:2] in ("q:", "v:") else f"q:{direction}"
+        if name not in names:
+            raise ArgumentError("direction", f"no coordinate {direction!r:.60}; expected one "
+                                             f"of {', '.join(names)}")
+        d[names.index(name)] = 1.0
+        label = f"direction {name}"
+    else:
+        try:
+            vec = np.array(direction, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ArgumentError("direction", "expected a coordinate name or a state vector, "
+                                             f"got {type(direction).__name__}") from None
+        if vec.size not in (n, 2 * n) or not np.all(np.isfinite(vec)) or not np.any(vec):
+            raise ArgumentError("direction", f"expected {n} positions or {2 * n} states "
+                                             f"({', '.join(names)}), finite and not all zero, "
+                                             f"got {vec.size} numbers")
+        d[:vec.size] = vec
+        label = "direction"
+    scale = np.abs(d[:n]).max()
+    if scale > 0:
+        return d / scale, label, "rad or m"
+    return d / np.abs(d[n:]).max(), label, "rad/s or m/s"
+
+
+def _mode_horizon(lam: complex, ma: ModalAnalysis, periods: float, time_constants: float
+                  ) -> tuple[float, float, str]:
+    """(T [s], its period [s] or 0, rule) of one mode (module docstring)."""
+    sigma, w = lam.real, abs(lam.imag)
+    if w > ma.rigid_tol:
+        T, rule = periods * 2 * np.pi / w, f"{periods:g} periods"
+        if sigma > ma.rigid_tol and time_constants / sigma < T:
+            T, rule = time_constants / sigma, f"growth e^{time_constants:g} (unstable)"
+        elif sigma < -ma.rigid_tol and DECAY / -sigma < T:
+            T, rule = DECAY / -sigma, f"decay e^-{DECAY:g}"
+        return T, 2 * np.pi / w, rule
+    verb = "growth e^" if sigma > 0 else "decay e^-"
+    T, rule = time_constants / abs(sigma), f"{time_constants:g} time constants ({verb}" \
+                                           f"{time_constants:g})"
+    longest = SLOW_LIMIT * 2 * np.pi / float(np.max(ma.wn))
+    if longest < T:
+        T, rule = longest, f"{SLOW_LIMIT:g} periods of the fastest mode (a slow real mode)"
+    return T, 0.0, rule
+
+
+def _grid(T: float, period: float) -> np.ndarray:
+    count = MIN_SAMPLES if period <= 0 else int(np.ceil(SAMPLES_PER_PERIOD * T / period)) + 1
+    return np.linspace(0.0, T, int(np.clip(count, MIN_SAMPLES, MAX_SAMPLES)))
+
+
+class _Sweep:
+    """One case: measures e(a) (keeping every motion for the histories) and builds its Case."""
+
+    def __init__(self, system: System, model: LinearModel, d: np.ndarray, t: np.ndarray,
+                 options: dict) -> None:
+        self.system, self.d, self.t, self.options = system, d, t, options
+        self.n, self.names = model.n_states // 2, model.state_names
+        ref_lin = response(model, t, method="exact").x
+        self.unit_lin = response(model, t, x0=d, method="exact").x - ref_lin
+        self.reference = self._simulate(np.zeros_like(d))
+        self.count = 1
+        self.runs: dict[float, np.ndarray] = {}
+        self.rows: dict[float, tuple[float, float, float, str]] = {}
+
+    def _simulate(self, x0: np.ndarray) -> np.ndarray:
+        sim = simulate(self.system, self.t, dx0=x0, **self.options)
+        if sim.independent_names != self.names:
+            raise ModelError(f"the simulated coordinates {sim.independent_names} are not the "
+                             f"linear model's {self.names}")
+        return np.asarray(sim.z)
+
+    def measure(self, a: float) -> float:
+        """e at amplitude a (inf when the simulation fails); the row (e, e_q, e_v, failure)
+        is kept."""
+        self.count += 1
+        try:
+            dnl = self._simulate(a * self.d) - self.reference
+        except PinlinError as exc:
+            self.rows[a] = (math.inf, math.inf, math.inf, str(exc))
+            return math.inf
+        self.runs[a] = dnl
+        lin = a * self.unit_lin
+        parts = []
+        for cols in (slice(0, self.n), slice(self.n, 2 * self.n)):
+            peak = np.abs(lin[:, cols]).max()
+            parts.append(np.abs(dnl[:, cols] - lin[:, cols]).max() / peak if peak > 0 else 0.0)
+        self.rows[a] = (max(parts), parts[0], parts[1], "")
+        return max(parts)
+
+    def refine(self, lo: float, hi: float, tol: float) -> float:
+        """The radius between lo (e <= tol) and hi (e > tol) by log-log secant steps."""
+        radius = lo
+        for _ in range(MAX_REFINE):
+            elo, ehi = self.rows[lo][0], self.rows[hi][0]
+            if elo > 0.0 and math.isfinite(ehi) and ehi > elo:
+                guess = math.exp(math.log(lo) + math.log(TARGET * tol / elo)
+                                 * math.log(hi / lo) / math.log(ehi / elo))
+            else:                                   # a failure or a flat error: bisect
+                guess = math.sqrt(lo * hi)
+            guess = min(max(guess, lo * (hi / lo) ** 0.02), hi * (lo / hi) ** 0.02)
+            e = self.measure(guess)
+            if e > tol:
+                hi = guess
+                continue
+            lo = radius = guess
+            if e >= ACCEPT * tol:
+                break
+        return radius
+
+    def case(self, amps: np.ndarray, default: bool, tol: float, **about: object) -> Case:
+        """Sweep ``amps`` (stopping past STOP_FACTOR tol when ``default``), refine, and the
+        :class:`Case` (``about``: label, index, eigenvalue, kind, unit, horizon, rule)."""
+        for a in amps:
+            e = self.measure(float(a))
+            if default and len(self.rows) >= ORDER_POINTS and not e <= STOP_FACTOR * tol:
+                break
+        a = np.array(sorted(self.rows))
+        k, bound = _radius(a, np.array([self.rows[x][0] for x in a]), tol)
+        radius = self.refine(float(a[k]), float(a[k + 1]), tol) if bound is Bound.FOUND \
+            else float(a[k])
+        a = np.array(sorted(self.rows))
+        e, e_q, e_v = (read_only(np.array([self.rows[x][j] for x in a])) for j in range(3))
+        p, diagnosis = _order(a, e, self.options["rtol"], self.options["atol"])
+        dnl, n = self.runs.get(radius), self.n
+        return Case(
+            **about, direction=read_only(self.d.copy()), amplitudes=read_only(a), errors=e,
+            position_errors=e_q, velocity_errors=e_v,
+            failures=tuple(self.rows[x][3] for x in a), radius=radius, bound=bound,
+            error_at_radius=self.rows[radius][0],
+            excursions=read_only(radius * np.abs(self.d[:n])),
+            peak=math.nan if dnl is None else float(np.abs(dnl[:, :n]).max()),
+            slope=p, diagnosis=diagnosis, reference_drift=float(np.abs(self.reference).max()),
+            t=read_only(self.t.copy()), nonlinear=None if dnl is None else read_only(dnl),
+            linear=None if dnl is None else read_only(radius * self.unit_lin))
+
+
+def _radius(a: np.ndarray, e: np.ndarray, tol: float) -> tuple[int, Bound]:
+    """(index of the last amplitude before the first one beyond tol, bound)."""
+    beyond = np.flatnonzero(~(e <= tol))
+    if beyond.size == 0:
+        return a.size - 1, Bound.ABOVE_RANGE
+    if beyond[0] == 0:
+        return 0, Bound.BELOW_RANGE
+    return int(beyond[0]) - 1, Bound.FOUND
+
+
+def _order(a: np.ndarray, e: np.ndarray, rtol: float, atol: float) -> tuple[float, str]:
+    """(p, diagnosis) from the ORDER_POINTS smallest amplitudes with e above the noise (and
+    below SATURATION if two are)."""
+    ok = np.isfinite(e) & (e > _floor(a, rtol, atol))
+    saturated = ok & (e > SATURATION)
+    if (ok & ~saturated).sum() >= 2:
+        ok &= ~saturated
+    use = ok & (np.cumsum(ok) <= ORDER_POINTS)
+    if use.sum() < 2:
+        return math.nan, "order unknown: fewer than two errors above the integration noise"
+    p = 1.0 + float(np.polyfit(np.log(a[use]), np.log(e[use]), 1)[0])
+    if p < FIRST_ORDER:
+        what = ("first order: the linear model misses a first-order effect here; the point "
+                "is not an equilibrium of the simulated dynamics")
+    elif p < THIRD_ORDER:
+        what = "second order: quadratic terms, as expected of a smooth system at equilibrium"
+    else:
+        what = "third order: no quadratic terms along this motion (an odd nonlinearity)"
+    shown = ", ".join(f"{x:.3g}" for x in a[use])
+    note = f"; errors > {SATURATION:g}: the motions no longer alike" if np.any(
+        saturated[use]) else ""
+    return p, f"{what} (order {p:.2f} from a = {shown}{note})"
+
+
+def _floor(a: np.ndarray, rtol: float, atol: float) -> np.ndarray:
+    """Integration noise of e at amplitude a: measured <= 10 atol / a + 1e2 rtol (a pendulum
+    and the UR5 arm at a <= 1e-5, where the true error is far below), with a 10x margin."""
+    return NOISE_RTOL * rtol + NOISE_ATOL * atol / a
+
+
+def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = None,
+             periods: float = 5, tolerance: float = 0.01, *, modes: object = None,
+             direction: object = None, time_constants: float = 2.0,
+             horizon: float | None = None, q: np.ndarray | None = None,
+             v: np.ndarray | None = None, rtol: float = 1e-10, atol: float = 1e-12
+             ) -> Validity:
+    """How large a motion the scene's linear model stays accurate for (module docstring).
+
+    Args:
+        scene: A :class:`~pinlin.Scene`, its System, or a scene file / bundled scene / robot
+            name (not a LinearModel: the scene is linearized and simulated here).
+        amplitudes: Amplitudes a [rad or m] (largest joint excursion of the initial state);
+            default :data:`DEFAULT_AMPLITUDES`, stopped past STOP_FACTOR tolerance.
+        periods: Horizon in periods of each oscillatory mode (> 0).
+        tolerance: Bound on the relative error e (0 < tolerance < 1), e.g. 0.01 for 1%.
+        modes: Eigenvalue indices of ``pinlin.modal(model)`` (``Validity.modes``) to sweep
+            (a conjugate's index means its pair); default every non-rigid mode, none when
+            ``direction`` is given.
+        direction: A coordinate name (``"elbow"``, ``"q:elbow"``, ``"v:elbow"``) or a state
+            vector (n positions, or 2n states) to sweep as well.
+        time_constants: Horizon of real modes in time constants 1/|sigma| (> 0), and the
+            growth e^time_constants that ends an unstable mode's comparison.
+        horizon: T [s] for every case instead of the rules above (needed for a direction
+            when every mode is rigid).
+        q, v: The point instead of the scene's, as for :func:`pinlin.linearize` and
+            :func:`pinlin.simulate` (q (nq); v (nv) [rad/s or m/s]: the state is given, u0 the
+            scene's ``u`` or zero, so the point need not be an equilibrium).
+        rtol, atol: Tolerances of the nonlinear simulation.
+
+    Raises:
+        ArgumentError: a bad argument (the message names it and what is expected).
+        ModelError: a linear graph; a model with no non-rigid mode and no direction.
+        PinlinError: as :func:`pinlin.linearize` for the scene or the point.
+    """
+    start = time.perf_counter()
+    system = _scene_system(scene)
+    amps, default = _amplitudes(amplitudes)
+    periods = _positive("periods", periods, "of periods")
+    tolerance = _positive("tolerance", tolerance, "(relative error)", upper=1.0)
+    time_constants = _positive("time_constants", time_constants, "of time constants")
+    horizon = None if horizon is None else _positive("horizon", horizon, "[s]")
+    model = linearize(system, q=q, v=v)
+    ma = modal(model)
+    chosen = _select(ma, modes, direction is not None)
+    drift = 0.0 if model.f0 is None else float(np.abs(model.f0).max(initial=0.0))
+    options = {"q0": None if q is None else model.operating_point.q,
+               "v0": None if v is None else model.operating_point.v, "rtol": rtol, "atol": atol}
+    n = model.n_states // 2
+    horizons = {i: _mode_horizon(ma.eigenvalues[i], ma, periods, time_constants)
+                for i in ma.modes() if ma.kind(i) not in _EXCLUDED_KINDS}
+    jobs = []
+    for i in chosen:
+        r = ma.right_vectors[:, i]
+        r = np.real(r / r[int(np.argmax(np.abs(r[:n])))])
+        jobs.append((f"mode {ma.modes().index(i) + 1}", i, r / np.abs(r[:n]).max(), "rad or m",
+                     horizons[i]))
+    if direction is not None:
+        d, label, unit = _direction(model, direction)
+        jobs.append((label, None, d, unit, _direction_horizon(ma, horizons, horizon)))
+    cases, count = [], 0
+    for label, i, d, unit, (T, period, rule) in jobs:
+        if horizon is not None:
+            T, rule = horizon, "given"
+        sweep = _Sweep(system, model, d, _grid(T, period), options)
+        cases.append(sweep.case(amps, default, tolerance, label=label, index=i, unit=unit,
+                                eigenvalue=None if i is None else complex(ma.eigenvalues[i]),
+                                kind="direction" if i is None else ma.kind(i), horizon=T,
+                                horizon_rule=rule))
+        count += sweep.count
+    return Validity(name=model.name, model=model, modes=ma, tolerance=tolerance,
+                    periods=periods, time_constants=time_constants, cases=tuple(cases),
+                    equilibrium=drift == 0.0, drift=drift,
+                    notes=tuple(notes(cases, drift, tolerance, FIRST_ORDER)),
+                    seconds=time.perf_counter() - start, simulations=count,
+                    coordinate_names=tuple(s[2:] for s in model.state_names[:n]))
+
+
+def _direction_horizon(ma: ModalAnalysis, horizons: dict[int, tuple[float, float, str]],
+                       horizon: float | None) -> tuple[float, float, str]:
+    """(T [s], fastest period [s], rule) of a direction: the longest mode horizon, capped by
+    the shortest unstable one."""
+    if not horizons:
+        if horizon is None:
+            raise ArgumentError("horizon", f"model '{ma.model.name}' has no non-rigid mode "
+                                           "to set the direction's horizon: give horizon= [s]")
+        return horizon, 0.0, "given"
+    unstable = [h[0] for j, h in horizons.items() if ma.eigenvalues[j].real > ma.rigid_tol]
+    period = min((h[1] for h in horizons.values() if h[1] > 0), default=0.0)
+    if unstable:
+        return min(unstable), period, "the shortest unstable mode horizon"
+    return max(h[0] for h in horizons.values()), period, "the longest mode horizon"
+
+
+__all__ = ["DEFAULT_AMPLITUDES", "Bound", "Case", "Validity", "validity"]
