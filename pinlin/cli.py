@@ -13,20 +13,27 @@ import argparse
 import os
 import sys
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .cli_format import (
+    file_name,
+    folder_name,
+    format_matrix,
+    format_poles,
+    plural,
+    print_operating_point,
+)
+from .cli_motion import add_commands
 from .exceptions import ArgumentError, ModelFileError, PinlinError
 
 if TYPE_CHECKING:
-    from .coordinates import JointInfo
+    pass
 
 EXIT_BAD_INPUT = 2
-#: Width of printed matrices: wider ones are printed in labelled blocks of columns.
-MATRIX_WIDTH = 100
 
 
 class _Parser(argparse.ArgumentParser):
@@ -74,11 +81,6 @@ def version_text() -> str:
     return f"pinlin {__version__} ({', '.join(parts)})"
 
 
-def _plural(count: int, word: str, plural: str | None = None) -> str:
-    """"1 input", "2 inputs" (``plural`` for irregular words)."""
-    return f"{count} {word if count == 1 else plural or word + 's'}"
-
-
 def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
                   file: object = None, line: str | None = None) -> None:
     """``warnings.showwarning`` for the CLI: one ``warning: ...`` line on stderr (pinlin's own
@@ -103,129 +105,6 @@ def _check_out(path: Path) -> None:
         raise ModelFileError(path, "cannot write: permission denied")
 
 
-def _file_name(option: str) -> Callable[[str], str]:
-    """argparse ``type`` for an output option: an empty value is refused at once (it would
-    otherwise be taken as "no file" and silently save nothing)."""
-
-    def check(text: str) -> str:
-        if not text.strip():
-            raise ArgumentError(option, "needs a file name, got an empty string")
-        return text
-
-    return check
-
-
-def _folder_name(value: str, option: str) -> str:
-    if not value.strip():
-        raise ArgumentError(option, "needs a folder name, got an empty string")
-    return value
-
-
-def _fmt(values: np.ndarray) -> str:
-    return np.array2string(np.asarray(values), precision=6, suppress_small=True,
-                           max_line_width=100)
-
-
-def _number(x: float) -> str:
-    """A matrix entry: 6 significant digits, exact zeros (also -0) as 0."""
-    return "0" if x == 0 else f"{x:.6g}"
-
-
-def _vector(values: np.ndarray) -> str:
-    """[a b c] with 6 significant digits."""
-    return "[" + " ".join(_number(float(x)) for x in values) + "]"
-
-
-def format_matrix(key: str, matrix: np.ndarray, rows: Sequence[str], columns: Sequence[str],
-                  width: int = MATRIX_WIDTH) -> str:
-    """``key =`` and the matrix with its row and column names, in blocks of whole columns
-    that fit in ``width`` characters; each block after the first of several names its
-    columns (``A, columns 9-16 of 76 (v:...):``). Entries print with 6 significant digits;
-    an exact zero as ``0`` and a nonzero entry below 1e-12 of the largest (rounding noise, for
-    a matrix computed in float64) as ``~0``."""
-    matrix = np.asarray(matrix)
-    n_rows, n_cols = matrix.shape
-    head = f"{key} = ({n_rows} x {n_cols})"
-    if matrix.size == 0:
-        return f"{head} empty"
-    noise = 1e-12 * float(np.abs(matrix).max())
-    cells = [[_number(float(x)) if not 0 < abs(x) < noise else "~0" for x in row]
-             for row in matrix]
-    label = max(len(r) for r in rows)
-    widths = [max(len(columns[j]), *(len(cells[i][j]) for i in range(n_rows)))
-              for j in range(n_cols)]
-    blocks: list[tuple[int, int]] = []
-    start, used = 0, label
-    for j, w in enumerate(widths):
-        if j > start and used + 2 + w > width:
-            blocks.append((start, j))
-            start, used = j, label
-        used += 2 + w
-    blocks.append((start, n_cols))
-    lines = [head]
-    for a, b in blocks:
-        if len(blocks) > 1:
-            lines.append(f"{key}, columns {a + 1}-{b} of {n_cols} ({columns[a]} .. "
-                         f"{columns[b - 1]}):")
-        lines.append(" " * label + "".join(f"  {columns[j]:>{widths[j]}}" for j in range(a, b)))
-        for i in range(n_rows):
-            lines.append(f"{rows[i]:<{label}}" + "".join(f"  {cells[i][j]:>{widths[j]}}"
-                                                          for j in range(a, b)))
-    return "\n".join(lines)
-
-
-def _joint_value(j: JointInfo, values: np.ndarray) -> str:
-    """A joint's configuration as a person reads it: angle, position and rpy, or the value."""
-    import pinocchio as pin
-
-    from .coordinates import FREE_FLYER, SPHERICAL
-
-    if j.continuous:
-        return f"{float(np.arctan2(values[1], values[0])):.6g} (angle)"
-    if j.kind in (FREE_FLYER, SPHERICAL):
-        quat = values[3:7] if j.kind == FREE_FLYER else values[:4]
-        rpy = pin.rpy.matrixToRpy(pin.Quaternion(np.asarray(quat, float)).matrix())
-        where = f"position {_vector(values[:3])} m, " if j.kind == FREE_FLYER else ""
-        return f"{where}rpy {_vector(rpy)} rad"
-    return _fmt(values) if j.nq > 1 else f"{values[0]:.6g}"
-
-
-def _print_operating_point(model, system) -> None:
-    op = model.operating_point
-    print(f"scene '{model.name}': nq = {system.nq}, nv = {system.nv}, "
-          f"{_plural(model.n_inputs, 'input')}, {_plural(model.n_outputs, 'output')}; "
-          f"base {model.info['base']}")
-    effects = model.info["effects"]
-    print(f"effects in play: {', '.join(effects) if effects else 'none'}")
-    extra = ""
-    if "alpha" in model.info:
-        extra = (f", alpha = {model.info['alpha']:g}, mu = {model.info['mu']:g}, "
-                 f"Omega = {model.info['omega']:g} rad/s")
-    elif "basis" in model.info:
-        extra = f", {model.info['basis']} basis"
-    steps = ""
-    if "step" in model.info:
-        steps = " (steps " + ", ".join(f"{k} {v:g}" for k, v in model.info["step"].items()) + ")"
-    print(f"linear model: {model.info['formulation']} formulation, "
-          f"{model.info['derivatives']} derivatives{steps}{extra}")
-    if "error_estimate" in model.info:
-        print(f"error estimate of A (relative, truncation + rounding): "
-              f"{model.info['error_estimate']:.1e}")
-    print("operating point:")
-    for name, j in system.joints.items():
-        print(f"  q[{name}] = {_joint_value(j, op.q[j.idx_q:j.idx_q + j.nq])}")
-    for name, u in zip(model.input_names, op.u, strict=True):
-        print(f"  {name} = {u:.6g}")
-    if op.lam is not None:
-        for name, lam in zip(op.lam_names, op.lam, strict=True):
-            print(f"  lam[{name}] = {lam:.6g}")
-    worst = float(np.abs(op.residual).max(initial=0.0)) if op.residual is not None else 0.0
-    state = "equilibrium" if op.equilibrium else "NOT an equilibrium"
-    print(f"  residual max |r| = {worst:.3e} (tolerance {op.tolerance:.1e}): {state}")
-    for note in op.notes:
-        print(f"  note: {note}")
-
-
 def _cmd_linearize(args: argparse.Namespace) -> int:
     from .linear_model import LinearModel  # noqa: F401  (import cost paid before the work)
     from .linearization import linearize
@@ -241,7 +120,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
                       allow_non_equilibrium=True if args.allow_non_equilibrium else None,
                       allow_ill_conditioned=args.allow_ill_conditioned,
                       basis=args.basis, alpha=args.alpha, mu=args.mu, omega=args.omega)
-    _print_operating_point(model, scene.system)
+    print_operating_point(model, scene.system)
     print()
     print(modal(model, method=args.method))
     if args.matrices:
@@ -262,7 +141,7 @@ def _cmd_robots(args: argparse.Namespace) -> int:
 
     status = loadable_robots()
     ok = [n for n, reason in status.items() if reason is None]
-    print(f"{len(ok)} of {_plural(len(status), 'example-robot-data robot')} "
+    print(f"{len(ok)} of {plural(len(status), 'example-robot-data robot')} "
           f"load{'s' if len(ok) == 1 else ''}:")
     for name in ok:
         rm = load_robot(name)
@@ -280,7 +159,7 @@ def _cmd_robots(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     from .bench import MECHANISMS, ROBOTS, run
 
-    _folder_name(args.out_dir, "--out-dir")
+    folder_name(args.out_dir, "--out-dir")
     systems = args.systems or list(ROBOTS + MECHANISMS)
     command = "pinlin bench" + "".join(f" {s}" for s in args.systems)
     if args.repeats != 5:
@@ -298,7 +177,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     if args.all and args.targets:
         raise ArgumentError("--all", "validates every bundled scene and robot; name systems "
                                      "or give --all, not both")
-    _folder_name(args.out_dir, "--out-dir")
+    folder_name(args.out_dir, "--out-dir")
     names = targets(args.all, list(args.targets))
     command = "pinlin validate" + (" --all" if args.all else "") + "".join(
         f" {t}" for t in args.targets)
@@ -309,7 +188,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     for r in results:
         print(f"{r.name:28s} {r.status:15s} {r.reason}")
     failed = [r.name for r in results if r.failed]
-    print(f"{_plural(len(results), 'system')}: {sum(r.passed for r in results)} pass, "
+    print(f"{plural(len(results), 'system')}: {sum(r.passed for r in results)} pass, "
           f"{len(failed)} fail"
           + (f" ({', '.join(failed)})" if failed else ""))
     return 1 if failed else 0
@@ -337,7 +216,7 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
         raise MujocoError(f"MuJoCo cannot write MJCF for '{scene.name}': {exc}") from None
     write_text_atomic(out, xml)
     print(f"MJCF of '{scene.name}' written to {out} (nq = {ms.model.nq}, nv = {ms.model.nv}, "
-          f"{_plural(ms.model.neq, 'equality', 'equalities')}, dt = {dt:g} s)")
+          f"{plural(ms.model.neq, 'equality', 'equalities')}, dt = {dt:g} s)")
     return 0
 
 
@@ -347,7 +226,7 @@ def _cmd_graph(args: argparse.Namespace) -> int:
     graph = Graph.load(args.file)
     tree = graph.normal_tree(combine=not args.no_combine)
     model = graph.linearize(combine=not args.no_combine, standard_form=args.standard_form)
-    branches = _plural(len(graph.branches), "branch", "branches")
+    branches = plural(len(graph.branches), "branch", "branches")
     print(f"graph '{graph.name}' ({graph.domain}): {branches}, inputs "
           f"{', '.join(model.input_names) or 'none'}")
     print(tree.describe())
@@ -371,141 +250,6 @@ def _cmd_graph(args: argparse.Namespace) -> int:
     return 0
 
 
-#: The trajectory command draws its progress bar once a run has taken this long [s].
-PROGRESS_AFTER = 1.0
-
-
-class _PointsBar:
-    """``progress(done, total)`` for :func:`pinlin.linearize_trajectory`: a one-line bar on
-    stderr, drawn once the run has taken :data:`PROGRESS_AFTER` seconds."""
-
-    def __init__(self, enabled: bool) -> None:
-        import time
-
-        self.enabled, self.start, self.drawn = enabled, time.perf_counter(), False
-
-    def __call__(self, done: int, total: int) -> None:
-        import time
-
-        if not self.enabled or (not self.drawn and
-                                time.perf_counter() - self.start < PROGRESS_AFTER):
-            return
-        width = 30
-        filled = int(width * done / total)
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} points")
-        sys.stderr.flush()
-        self.drawn = True
-        if done == total:
-            sys.stderr.write("\n")
-            self.enabled = False
-
-    def close(self) -> None:
-        """End a bar left part-drawn (a run stopped by an error)."""
-        if self.enabled and self.drawn:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
-            self.enabled = False
-
-
-def _dask_executor(address: str):
-    """(client, executor) for the Dask scheduler at ``address``."""
-    try:
-        from distributed import Client
-    except ImportError:
-        raise ArgumentError("--dask", "needs Dask: pip install 'pinlin[dask]'") from None
-    try:
-        client = Client(address, timeout=10)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ArgumentError("--dask", f"cannot reach a Dask scheduler at {address!r}: "
-                                      f"{' '.join(str(exc).split()) or type(exc).__name__}") \
-            from None
-    return client, client.get_executor()
-
-
-def _cmd_trajectory(args: argparse.Namespace) -> int:
-    import time
-
-    from .exceptions import ShapeError
-    from .files import check_file_target
-    from .scene import Scene
-    from .trajectory import linearize_trajectory
-    from .trajectory_files import MODEL_FORMATS, read_states
-
-    out = Path(args.out)
-    if out.suffix not in MODEL_FORMATS:
-        raise ModelFileError(out, f"unknown trajectory model format '{out.suffix}'; expected "
-                                  ".npz or .mat")
-    check_file_target(out)
-    parent = out.parent if str(out.parent) else Path(".")
-    if not os.access(parent, os.W_OK) or (out.exists() and not os.access(out, os.W_OK)):
-        raise ModelFileError(out, "cannot write: permission denied")
-    if args.workers < 1:
-        raise ArgumentError("--workers", f"expected a number of processes >= 1, got "
-                                         f"{args.workers}")
-    if args.dask is not None and args.workers != 1:
-        raise ArgumentError("--dask", "runs on the cluster's workers; leave out --workers")
-    if args.dt is not None and not (np.isfinite(args.dt) and args.dt > 0):
-        raise ArgumentError("--dt", f"expected a sample time > 0 [s], got {args.dt:g}")
-    if args.discretization is not None and args.dt is None:
-        raise ArgumentError("--discretization", "applies with --dt (the sample time [s])")
-    scene = Scene.resolve(args.target)
-    q, v, u, t = read_states(args.states, scene.system)
-    client = executor = None
-    if args.dask is not None:
-        client, executor = _dask_executor(args.dask)
-    bar = _PointsBar(not args.no_progress)
-    start = time.perf_counter()
-    try:
-        model = linearize_trajectory(scene, q, v, u, t, workers=args.workers,
-                                     executor=executor, derivatives=args.derivatives,
-                                     step=args.step, progress=bar)
-    except ArgumentError as exc:
-        bar.close()
-        if exc.argument in ("q", "v", "u", "t"):
-            raise ModelFileError(args.states, f"{exc.argument}: {exc.reason}") from None
-        raise
-    except ShapeError as exc:
-        bar.close()
-        raise ModelFileError(args.states, str(exc).replace("argument ", "")) from None
-    except BaseException:
-        bar.close()
-        raise
-    finally:
-        if client is not None:
-            client.close()
-    elapsed = time.perf_counter() - start
-    where = (f"Dask at {args.dask}" if args.dask else _plural(args.workers, "process",
-                                                                "processes"))
-    n_points = len(model)
-    print(f"trajectory of '{model.name}': {_plural(n_points, 'point')}, "
-          f"{_plural(len(model.state_names), 'state')}, "
-          f"{_plural(len(model.input_names), 'input')}, "
-          f"{_plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
-          f"derivatives ({model.info['path']}), {where}: {elapsed:.3g} s "
-          f"({1e6 * elapsed / n_points:.3g} us per point)")
-    if args.dt is not None:
-        method = args.discretization or "zoh"
-        model = model.discretize(args.dt, method)
-        print(f"discretized: {method}, dt = {args.dt:g} s")
-    model.save(out)
-    print(f"models written to {out}")
-    return 0
-
-
-def format_poles(A: np.ndarray) -> str:
-    """The eigenvalues of A, slowest first, a conjugate pair once as ``re +- im j``; "none"
-    for a model without states."""
-    if A.size == 0:
-        return "none"
-    lam = np.linalg.eigvals(A)
-    lam = lam[np.lexsort((-lam.imag, lam.real, np.abs(lam)))]
-    shown = []
-    for x in lam:
-        if x.imag < 0 and np.any(np.isclose(lam, x.conjugate(), rtol=1e-12, atol=0.0)):
-            continue  # printed with its partner
-        re = _number(float(x.real))
-        shown.append(f"{re} +- {_number(float(x.imag))}j" if x.imag > 0 else re)
-    return ", ".join(shown)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -544,7 +288,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "of an error, but no reliable digit")
     lin.add_argument("--matrices", action="store_true",
                      help="print A, B, C, D with their row and column names")
-    lin.add_argument("--out", metavar="FILE", type=_file_name("--out"),
+    lin.add_argument("--out", metavar="FILE", type=file_name("--out"),
                      help="save the model (.npz, .mat or .json)")
     lin.set_defaults(func=_cmd_linearize)
     ben = sub.add_parser("bench", help="measure accuracy against time (analytic, fd3, fd5, "
@@ -567,7 +311,7 @@ def build_parser() -> argparse.ArgumentParser:
     exp = sub.add_parser("export-mjcf", help="write the scene as MJCF with only its effects")
     exp.add_argument("target", metavar="SCENE_OR_ROBOT")
     exp.add_argument("-o", "--output", required=True, metavar="FILE.xml",
-                     type=_file_name("--output"))
+                     type=file_name("--output"))
     exp.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default 1e-3)")
     exp.set_defaults(func=_cmd_export_mjcf)
     gra = sub.add_parser("graph", help="state equations of a linear graph (Rowell)")
@@ -580,29 +324,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="keep A-type elements in series and T-type in parallel (report the "
                           "excess states instead of combining them)")
     gra.set_defaults(func=_cmd_graph)
-    tra = sub.add_parser("trajectory", help="linear models at every state of a trajectory")
-    tra.add_argument("target", metavar="SCENE_OR_ROBOT",
-                     help="scene .toml, .urdf, bundled scene name or example-robot-data robot")
-    tra.add_argument("states", metavar="TRAJECTORY",
-                     help=".npz with arrays q (N, nq), v (N, nv), u (N, nu) [, t (N,)], or .csv "
-                          "with a header naming the columns t, q:<joint>, v:<coordinate>, "
-                          "u:<coordinate> (see the README)")
-    tra.add_argument("--out", required=True, metavar="FILE", type=_file_name("--out"),
-                     help="write the stacked models (.npz or .mat)")
-    tra.add_argument("--workers", type=int, default=1,
-                     help="processes on this machine (default 1)")
-    tra.add_argument("--dask", metavar="ADDRESS", default=None,
-                     help="run on a Dask cluster, e.g. tcp://scheduler:8786 (extra 'dask')")
-    tra.add_argument("--derivatives", choices=BACKENDS, default="analytic")
-    tra.add_argument("--step", type=float, default=None,
-                     help="finite-difference step for fd3/fd5 [rad, m, rad/s, m/s, N*m, N]")
-    tra.add_argument("--dt", type=float, default=None,
-                     help="discretize the models with this sample time [s]")
-    tra.add_argument("--discretization", choices=("zoh", "euler"), default=None,
-                     help="with --dt: zero-order hold (default) or semi-implicit Euler")
-    tra.add_argument("--no-progress", action="store_true", help="no progress bar")
-    tra.set_defaults(func=_cmd_trajectory)
-    for command in (lin, ben, val, exp, tra):
+    motion = add_commands(sub, BACKENDS)
+    for command in (lin, ben, val, exp, *motion):
         command.add_argument("--memory-limit", metavar="SIZE", default=None,
                              help="refuse a model whose estimated memory exceeds SIZE: bytes, "
                                   "or with suffix K, M, G, T (powers of 1024), e.g. 8G "

@@ -188,7 +188,7 @@ def test_one_input_is_singular(capfd):
 
 
 def test_plural_helper():
-    from pinlin.cli import _plural
+    from pinlin.cli_format import plural as _plural
 
     assert _plural(1, "branch", "branches") == "1 branch"
     assert _plural(0, "branch", "branches") == "0 branches"

@@ -452,7 +452,7 @@ def _write_csv(path, scene, q, v, u, t=None, columns=None):
 def test_cli_reads_both_state_formats(suffix, tmp_path, capfd, monkeypatch):
     import pinlin.cli
 
-    monkeypatch.setattr(pinlin.cli, "PROGRESS_AFTER", 0.0)
+    monkeypatch.setattr(pinlin.cli_motion, "PROGRESS_AFTER", 0.0)
     scene = pinlin.Scene.load(URDF_DIR / "ur5_arm.toml")
     q, v, u = states(scene, 600, seed=24)
     t = np.arange(600) * 0.002

@@ -1,0 +1,161 @@
+"""What the command line prints and how it reads file names: matrices with their row and
+column names, operating points, poles, plurals (the parsing itself is in :mod:`pinlin.cli`)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .exceptions import ArgumentError
+
+if TYPE_CHECKING:
+    from .coordinates import JointInfo
+
+#: Width of printed matrices: wider ones are printed in labelled blocks of columns.
+MATRIX_WIDTH = 100
+
+
+def plural(count: int, word: str, plural: str | None = None) -> str:
+    """"1 input", "2 inputs" (``plural`` for irregular words)."""
+    return f"{count} {word if count == 1 else plural or word + 's'}"
+
+
+def file_name(option: str) -> Callable[[str], str]:
+    """argparse ``type`` for an output option: an empty value is refused at once (it would
+    otherwise be taken as "no file" and silently save nothing)."""
+
+    def check(text: str) -> str:
+        if not text.strip():
+            raise ArgumentError(option, "needs a file name, got an empty string")
+        return text
+
+    return check
+
+
+def folder_name(value: str, option: str) -> str:
+    if not value.strip():
+        raise ArgumentError(option, "needs a folder name, got an empty string")
+    return value
+
+
+def _fmt(values: np.ndarray) -> str:
+    return np.array2string(np.asarray(values), precision=6, suppress_small=True,
+                           max_line_width=100)
+
+
+def _number(x: float) -> str:
+    """A matrix entry: 6 significant digits, exact zeros (also -0) as 0."""
+    return "0" if x == 0 else f"{x:.6g}"
+
+
+def _vector(values: np.ndarray) -> str:
+    """[a b c] with 6 significant digits."""
+    return "[" + " ".join(_number(float(x)) for x in values) + "]"
+
+
+def format_matrix(key: str, matrix: np.ndarray, rows: Sequence[str], columns: Sequence[str],
+                  width: int = MATRIX_WIDTH) -> str:
+    """``key =`` and the matrix with its row and column names, in blocks of whole columns
+    that fit in ``width`` characters; each block after the first of several names its
+    columns (``A, columns 9-16 of 76 (v:...):``). Entries print with 6 significant digits;
+    an exact zero as ``0`` and a nonzero entry below 1e-12 of the largest (rounding noise, for
+    a matrix computed in float64) as ``~0``."""
+    matrix = np.asarray(matrix)
+    n_rows, n_cols = matrix.shape
+    head = f"{key} = ({n_rows} x {n_cols})"
+    if matrix.size == 0:
+        return f"{head} empty"
+    noise = 1e-12 * float(np.abs(matrix).max())
+    cells = [[_number(float(x)) if not 0 < abs(x) < noise else "~0" for x in row]
+             for row in matrix]
+    label = max(len(r) for r in rows)
+    widths = [max(len(columns[j]), *(len(cells[i][j]) for i in range(n_rows)))
+              for j in range(n_cols)]
+    blocks: list[tuple[int, int]] = []
+    start, used = 0, label
+    for j, w in enumerate(widths):
+        if j > start and used + 2 + w > width:
+            blocks.append((start, j))
+            start, used = j, label
+        used += 2 + w
+    blocks.append((start, n_cols))
+    lines = [head]
+    for a, b in blocks:
+        if len(blocks) > 1:
+            lines.append(f"{key}, columns {a + 1}-{b} of {n_cols} ({columns[a]} .. "
+                         f"{columns[b - 1]}):")
+        lines.append(" " * label + "".join(f"  {columns[j]:>{widths[j]}}" for j in range(a, b)))
+        for i in range(n_rows):
+            lines.append(f"{rows[i]:<{label}}" + "".join(f"  {cells[i][j]:>{widths[j]}}"
+                                                          for j in range(a, b)))
+    return "\n".join(lines)
+
+
+def _joint_value(j: JointInfo, values: np.ndarray) -> str:
+    """A joint's configuration as a person reads it: angle, position and rpy, or the value."""
+    import pinocchio as pin
+
+    from .coordinates import FREE_FLYER, SPHERICAL
+
+    if j.continuous:
+        return f"{float(np.arctan2(values[1], values[0])):.6g} (angle)"
+    if j.kind in (FREE_FLYER, SPHERICAL):
+        quat = values[3:7] if j.kind == FREE_FLYER else values[:4]
+        rpy = pin.rpy.matrixToRpy(pin.Quaternion(np.asarray(quat, float)).matrix())
+        where = f"position {_vector(values[:3])} m, " if j.kind == FREE_FLYER else ""
+        return f"{where}rpy {_vector(rpy)} rad"
+    return _fmt(values) if j.nq > 1 else f"{values[0]:.6g}"
+
+
+def print_operating_point(model, system) -> None:
+    op = model.operating_point
+    print(f"scene '{model.name}': nq = {system.nq}, nv = {system.nv}, "
+          f"{plural(model.n_inputs, 'input')}, {plural(model.n_outputs, 'output')}; "
+          f"base {model.info['base']}")
+    effects = model.info["effects"]
+    print(f"effects in play: {', '.join(effects) if effects else 'none'}")
+    extra = ""
+    if "alpha" in model.info:
+        extra = (f", alpha = {model.info['alpha']:g}, mu = {model.info['mu']:g}, "
+                 f"Omega = {model.info['omega']:g} rad/s")
+    elif "basis" in model.info:
+        extra = f", {model.info['basis']} basis"
+    steps = ""
+    if "step" in model.info:
+        steps = " (steps " + ", ".join(f"{k} {v:g}" for k, v in model.info["step"].items()) + ")"
+    print(f"linear model: {model.info['formulation']} formulation, "
+          f"{model.info['derivatives']} derivatives{steps}{extra}")
+    if "error_estimate" in model.info:
+        print(f"error estimate of A (relative, truncation + rounding): "
+              f"{model.info['error_estimate']:.1e}")
+    print("operating point:")
+    for name, j in system.joints.items():
+        print(f"  q[{name}] = {_joint_value(j, op.q[j.idx_q:j.idx_q + j.nq])}")
+    for name, u in zip(model.input_names, op.u, strict=True):
+        print(f"  {name} = {u:.6g}")
+    if op.lam is not None:
+        for name, lam in zip(op.lam_names, op.lam, strict=True):
+            print(f"  lam[{name}] = {lam:.6g}")
+    worst = float(np.abs(op.residual).max(initial=0.0)) if op.residual is not None else 0.0
+    state = "equilibrium" if op.equilibrium else "NOT an equilibrium"
+    print(f"  residual max |r| = {worst:.3e} (tolerance {op.tolerance:.1e}): {state}")
+    for note in op.notes:
+        print(f"  note: {note}")
+
+
+def format_poles(A: np.ndarray) -> str:
+    """The eigenvalues of A, slowest first, a conjugate pair once as ``re +- im j``; "none"
+    for a model without states."""
+    if A.size == 0:
+        return "none"
+    lam = np.linalg.eigvals(A)
+    lam = lam[np.lexsort((-lam.imag, lam.real, np.abs(lam)))]
+    shown = []
+    for x in lam:
+        if x.imag < 0 and np.any(np.isclose(lam, x.conjugate(), rtol=1e-12, atol=0.0)):
+            continue  # printed with its partner
+        re = _number(float(x.real))
+        shown.append(f"{re} +- {_number(float(x.imag))}j" if x.imag > 0 else re)
+    return ", ".join(shown)

@@ -1,0 +1,455 @@
+"""Command-line commands for motion: ``pinlin trajectory``, ``pinlin simulate``,
+``pinlin response`` and ``pinlin validity`` (parsing and printing only; the work is in
+:mod:`pinlin.trajectory`, :mod:`pinlin.simulation`, :mod:`pinlin.response` and
+:mod:`pinlin.validity`)."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .cli_format import file_name, folder_name, plural
+from .exceptions import ArgumentError, ModelFileError
+
+#: The trajectory progress bar appears once a run has taken this long [s].
+PROGRESS_AFTER = 1.0
+#: Formats of the time histories ``simulate`` and ``response`` write.
+HISTORY_FORMATS = (".csv", ".npz")
+
+
+class _PointsBar:
+    """``progress(done, total)`` for :func:`pinlin.linearize_trajectory`: a one-line bar on
+    stderr, drawn once the run has taken :data:`PROGRESS_AFTER` seconds."""
+
+    def __init__(self, enabled: bool) -> None:
+        import time
+
+        self.enabled, self.start, self.drawn = enabled, time.perf_counter(), False
+
+    def __call__(self, done: int, total: int) -> None:
+        import time
+
+        if not self.enabled or (not self.drawn and
+                                time.perf_counter() - self.start < PROGRESS_AFTER):
+            return
+        width = 30
+        filled = int(width * done / total)
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} points")
+        sys.stderr.flush()
+        self.drawn = True
+        if done == total:
+            sys.stderr.write("\n")
+            self.enabled = False
+
+    def close(self) -> None:
+        """End a bar left part-drawn (a run stopped by an error)."""
+        if self.enabled and self.drawn:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+            self.enabled = False
+
+
+def _dask_executor(address: str):
+    """(client, executor) for the Dask scheduler at ``address``."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ArgumentError("--dask", "needs Dask: pip install 'pinlin[dask]'") from None
+    try:
+        client = Client(address, timeout=10)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ArgumentError("--dask", f"cannot reach a Dask scheduler at {address!r}: "
+                                      f"{' '.join(str(exc).split()) or type(exc).__name__}") \
+            from None
+    return client, client.get_executor()
+
+
+def _cmd_trajectory(args: argparse.Namespace) -> int:
+    import time
+
+    from .exceptions import ShapeError
+    from .files import check_file_target
+    from .scene import Scene
+    from .trajectory import linearize_trajectory
+    from .trajectory_files import MODEL_FORMATS, read_states
+
+    out = Path(args.out)
+    if out.suffix not in MODEL_FORMATS:
+        raise ModelFileError(out, f"unknown trajectory model format '{out.suffix}'; expected "
+                                  ".npz or .mat")
+    check_file_target(out)
+    parent = out.parent if str(out.parent) else Path(".")
+    if not os.access(parent, os.W_OK) or (out.exists() and not os.access(out, os.W_OK)):
+        raise ModelFileError(out, "cannot write: permission denied")
+    if args.workers < 1:
+        raise ArgumentError("--workers", f"expected a number of processes >= 1, got "
+                                         f"{args.workers}")
+    if args.dask is not None and args.workers != 1:
+        raise ArgumentError("--dask", "runs on the cluster's workers; leave out --workers")
+    if args.dt is not None and not (np.isfinite(args.dt) and args.dt > 0):
+        raise ArgumentError("--dt", f"expected a sample time > 0 [s], got {args.dt:g}")
+    if args.discretization is not None and args.dt is None:
+        raise ArgumentError("--discretization", "applies with --dt (the sample time [s])")
+    scene = Scene.resolve(args.target)
+    q, v, u, t = read_states(args.states, scene.system)
+    client = executor = None
+    if args.dask is not None:
+        client, executor = _dask_executor(args.dask)
+    bar = _PointsBar(not args.no_progress)
+    start = time.perf_counter()
+    try:
+        model = linearize_trajectory(scene, q, v, u, t, workers=args.workers,
+                                     executor=executor, derivatives=args.derivatives,
+                                     step=args.step, progress=bar)
+    except ArgumentError as exc:
+        bar.close()
+        if exc.argument in ("q", "v", "u", "t"):
+            raise ModelFileError(args.states, f"{exc.argument}: {exc.reason}") from None
+        raise
+    except ShapeError as exc:
+        bar.close()
+        raise ModelFileError(args.states, str(exc).replace("argument ", "")) from None
+    except BaseException:
+        bar.close()
+        raise
+    finally:
+        if client is not None:
+            client.close()
+    elapsed = time.perf_counter() - start
+    where = (f"Dask at {args.dask}" if args.dask else plural(args.workers, "process",
+                                                                "processes"))
+    n_points = len(model)
+    print(f"trajectory of '{model.name}': {plural(n_points, 'point')}, "
+          f"{plural(len(model.state_names), 'state')}, "
+          f"{plural(len(model.input_names), 'input')}, "
+          f"{plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
+          f"derivatives ({model.info['path']}), {where}: {elapsed:.3g} s "
+          f"({1e6 * elapsed / n_points:.3g} us per point)")
+    if args.dt is not None:
+        method = args.discretization or "zoh"
+        model = model.discretize(args.dt, method)
+        print(f"discretized: {method}, dt = {args.dt:g} s")
+    model.save(out)
+    print(f"models written to {out}")
+    return 0
+
+
+def _times(args: argparse.Namespace) -> np.ndarray:
+    """The time grid 0, dt, ..., t_end [s] of --t-end and --dt."""
+    if not (np.isfinite(args.t_end) and args.t_end > 0):
+        raise ArgumentError("--t-end", f"expected a duration > 0 [s], got {args.t_end:g}")
+    if not (np.isfinite(args.dt) and 0 < args.dt <= args.t_end):
+        raise ArgumentError("--dt", f"expected an output step in (0, --t-end] [s], got "
+                                    f"{args.dt:g}")
+    n = int(np.floor(args.t_end / args.dt + 1e-9)) + 1
+    if n > 1_000_000:
+        raise ArgumentError("--dt", f"{n} output times; at most 1000000 (raise --dt)")
+    return np.arange(n) * args.dt
+
+
+def _assignments(values: list[str] | None, names: tuple[str, ...], option: str,
+                 prefix: str) -> dict[str, str]:
+    """NAME=VALUE pairs, each NAME one of ``names`` (``prefix`` may be left out)."""
+    out: dict[str, str] = {}
+    for item in values or []:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not name or not value.strip():
+            raise ArgumentError(option, f"expected NAME=VALUE, got {item!r}")
+        if name not in names and f"{prefix}{name}" in names:
+            name = f"{prefix}{name}"
+        if name not in names:
+            shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
+            raise ArgumentError(option, f"{name!r} is not one of {shown}")
+        out[name] = value.strip()
+    return out
+
+
+def _float(text: str, option: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ArgumentError(option, f"expected a number, got {text!r}") from None
+    if not np.isfinite(value):
+        raise ArgumentError(option, f"expected a finite number, got {text!r}")
+    return value
+
+
+def _initial(model, values: list[str] | None) -> np.ndarray | None:
+    """--x0 NAME=VALUE pairs as a state deviation (the model's state names)."""
+    given = _assignments(values, model.state_names, "--x0", "q:")
+    if not given:
+        return None
+    x0 = np.zeros(len(model.state_names))
+    for name, value in given.items():
+        x0[model.state_names.index(name)] = _float(value, "--x0")
+    return x0
+
+
+def _check_history_out(path: str | None, option: str = "--out") -> Path | None:
+    from .files import check_file_target
+
+    if path is None:
+        return None
+    out = Path(path)
+    if out.suffix not in HISTORY_FORMATS:
+        raise ModelFileError(out, f"unknown format '{out.suffix}' for time histories; "
+                                  f"expected {' or '.join(HISTORY_FORMATS)}")
+    check_file_target(out)
+    return out
+
+
+def _check_plot(path: str | None) -> Path | None:
+    from .files import check_file_target
+
+    if path is None:
+        return None
+    out = Path(path)
+    if out.suffix != ".png":
+        raise ModelFileError(out, "expected a .png file for the plot")
+    check_file_target(out)
+    return out
+
+
+def _write_history(path: Path, t: np.ndarray, columns: dict[str, np.ndarray]) -> None:
+    """t and named columns as CSV (a header row) or NPZ (arrays t, names, values)."""
+    from .files import write_bytes_atomic, write_text_atomic
+
+    names = list(columns)
+    values = np.column_stack([t] + [columns[n] for n in names])
+    if path.suffix == ".csv":
+        lines = [",".join(["t", *names])]
+        lines += [",".join(f"{x:.17g}" for x in row) for row in values]
+        write_text_atomic(path, "\n".join(lines) + "\n")
+    else:
+        buf = io.BytesIO()
+        np.savez(buf, t=t, names=np.array(names, dtype=str), values=values[:, 1:])
+        write_bytes_atomic(path, buf.getvalue())
+
+
+def _plot_histories(path: Path, title: str, t: np.ndarray,
+                    curves: list[tuple[str, np.ndarray, np.ndarray, str]]) -> None:
+    """One panel per state group (positions, velocities): curves (label, t, y, style)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .files import write_bytes_atomic
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for label, tc, y, style in curves[:24]:
+        ax.plot(tc, y, style, label=label, linewidth=1.0)
+    ax.set_xlabel("t [s]")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    if len(curves) <= 12:
+        ax.legend(fontsize=7, ncol=2)
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .linearization import linearize
+    from .scene import Scene
+    from .simulation import simulate
+
+    t = _times(args)
+    out, plot = _check_history_out(args.out), _check_plot(args.plot)
+    scene = Scene.resolve(args.target)
+    model = linearize(scene)
+    x0 = _initial(model, args.x0)
+    sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
+    n = len(sim.state_names) // 2
+    print(f"simulated '{scene.name}' (nonlinear, the scene's effects: "
+          f"{', '.join(scene.effects.in_play()) or 'none'}) over {t[-1]:g} s: "
+          f"{sim.info.get('method')}, {plural(int(sim.info.get('nfev', 0)), 'evaluation')}")
+    if sim.drift is not None and sim.drift.size and np.any(sim.drift):
+        print(f"constraint drift: |Phi| <= {sim.drift[:, 0].max():.1e}, |Phi_q v| <= "
+              f"{sim.drift[:, 1].max():.1e}")
+    if sim.energy is not None:
+        print(f"energy change: {np.abs(sim.energy - sim.energy[0]).max():.3e} J")
+    final = ", ".join(f"{name} = {value:.6g}" for name, value
+                      in zip(sim.state_names[:n], sim.z[-1, :n], strict=True))
+    print(f"final deviation: {final}")
+    states = {name: sim.z[:, k] for k, name in enumerate(sim.state_names)}
+    if out is not None:
+        outputs = {f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)}
+        _write_history(out, sim.t, {**states, **outputs})
+        print(f"time histories written to {out}")
+    if plot is not None:
+        _plot_histories(plot, f"{scene.name}: nonlinear simulation", sim.t,
+                        [(name, sim.t, sim.z[:, k], "-")
+                         for k, name in enumerate(sim.state_names[:n])])
+        print(f"plot written to {plot}")
+    return 0
+
+
+def _signals(args: argparse.Namespace, model):
+    """--step, --impulse, --harmonic as one pinlin signal (None without any)."""
+    from .signals import harmonic, impulse, step
+
+    total = None
+    for option, make in (("--step", step), ("--impulse", impulse)):
+        given = _assignments(getattr(args, option[2:]), model.input_names, option, "u:")
+        if given:
+            sig = make({k: _float(v, option) for k, v in given.items()})
+            total = sig if total is None else total + sig
+    for item in args.harmonic or []:
+        name, sep, rest = item.partition("=")
+        amp, at, freq = rest.partition("@")
+        if not sep or not at:
+            raise ArgumentError("--harmonic", f"expected u:NAME=AMPLITUDE@W (W [rad/s]), got "
+                                              f"{item!r}")
+        key = next(iter(_assignments([f"{name}={amp}"], model.input_names, "--harmonic",
+                                     "u:")))
+        sig = harmonic({key: _float(amp, "--harmonic")}, _float(freq, "--harmonic"))
+        total = sig if total is None else total + sig
+    return total
+
+
+def _cmd_response(args: argparse.Namespace) -> int:
+    from .linearization import linearize
+    from .response import response
+    from .scene import Scene
+
+    t = _times(args)
+    out, plot = _check_history_out(args.out), _check_plot(args.plot)
+    scene = Scene.resolve(args.target)
+    model = linearize(scene)
+    x0 = _initial(model, args.x0)
+    u = _signals(args, model)
+    res = response(model, t, x0=x0, u=u, method=args.method)
+    n = len(model.state_names) // 2
+    peak = np.abs(res.x[:, :n]).max(axis=0)
+    worst = int(np.argmax(peak))
+    print(f"linear response of '{model.name}' ({args.method}) over {t[-1]:g} s: largest "
+          f"excursion {peak[worst]:.6g} on {model.state_names[worst]}")
+    curves = [(name, res.t, res.x[:, k], "-") for k, name in enumerate(model.state_names[:n])]
+    columns = {name: res.x[:, k] for k, name in enumerate(model.state_names)}
+    if args.nonlinear:
+        if u is not None:
+            raise ArgumentError("--nonlinear", "compares free responses (--x0 only); inputs "
+                                               "are not simulated nonlinearly from the CLI")
+        from .simulation import simulate
+
+        sim = simulate(scene, t, dx0=x0)
+        diff = np.abs(sim.z - res.x).max()
+        scale = max(float(np.abs(res.x).max()), np.finfo(float).tiny)
+        print(f"nonlinear simulation from the same state: max |x_nl - x_lin| = {diff:.3e} "
+              f"({diff / scale:.2e} of the largest linear value)")
+        curves += [(f"{name} (nonlinear)", sim.t, sim.z[:, k], "--")
+                   for k, name in enumerate(sim.state_names[:n])]
+        columns.update({f"nl:{name}": sim.z[:, k] for k, name in enumerate(sim.state_names)})
+    if out is not None:
+        _write_history(out, res.t, columns)
+        print(f"time histories written to {out}")
+    if plot is not None:
+        _plot_histories(plot, f"{model.name}: linear response"
+                        + (" and nonlinear simulation" if args.nonlinear else ""), res.t,
+                        curves)
+        print(f"plot written to {plot}")
+    return 0
+
+
+def _cmd_validity(args: argparse.Namespace) -> int:
+    from .files import check_folder_target, make_folder
+    from .validity import validity
+
+    folder = None
+    if args.out_dir is not None:
+        folder = check_folder_target(folder_name(args.out_dir, "--out-dir"), "--out-dir")
+    result = validity(args.target, amplitudes=args.amplitudes, periods=args.periods,
+                      tolerance=args.tolerance, modes=args.modes, direction=args.direction)
+    print(result.table())
+    if folder is not None:
+        make_folder(folder)
+        paths = result.plot(folder)
+        print("plots written to " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser]:
+    """The motion subcommands; returns the ones that take --memory-limit."""
+    scene_help = "scene .toml, .urdf, bundled scene name or example-robot-data robot"
+    tra = sub.add_parser("trajectory", help="linear models at every state of a trajectory")
+    tra.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
+    tra.add_argument("states", metavar="TRAJECTORY",
+                     help=".npz with arrays q (N, nq), v (N, nv), u (N, nu) [, t (N,)], or .csv "
+                          "with a header naming the columns t, q:<joint>, v:<coordinate>, "
+                          "u:<coordinate> (see the README)")
+    tra.add_argument("--out", required=True, metavar="FILE", type=file_name("--out"),
+                     help="write the stacked models (.npz or .mat)")
+    tra.add_argument("--workers", type=int, default=1,
+                     help="processes on this machine (default 1)")
+    tra.add_argument("--dask", metavar="ADDRESS", default=None,
+                     help="run on a Dask cluster, e.g. tcp://scheduler:8786 (extra 'dask')")
+    tra.add_argument("--derivatives", choices=backends, default="analytic")
+    tra.add_argument("--step", type=float, default=None,
+                     help="finite-difference step for fd3/fd5 [rad, m, rad/s, m/s, N*m, N]")
+    tra.add_argument("--dt", type=float, default=None,
+                     help="discretize the models with this sample time [s]")
+    tra.add_argument("--discretization", choices=("zoh", "euler"), default=None,
+                     help="with --dt: zero-order hold (default) or semi-implicit Euler")
+    tra.add_argument("--no-progress", action="store_true", help="no progress bar")
+    tra.set_defaults(func=_cmd_trajectory)
+
+    def timed(p: argparse.ArgumentParser) -> None:
+        p.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
+        p.add_argument("--t-end", type=float, required=True, metavar="T",
+                       help="duration [s]")
+        p.add_argument("--dt", type=float, default=0.01, help="output step [s] (default 0.01)")
+        p.add_argument("--x0", nargs="+", metavar="NAME=VALUE",
+                       help="initial deviation, e.g. q:elbow=0.1 v:shoulder=0.5 [rad, m, "
+                            "rad/s, m/s] (the linear model's state names)")
+        p.add_argument("--out", metavar="FILE", type=file_name("--out"),
+                       help="write the time histories (.csv or .npz)")
+        p.add_argument("--plot", metavar="FILE.png", type=file_name("--plot"),
+                       help="plot the position histories")
+
+    sim = sub.add_parser("simulate", help="the scene's nonlinear dynamics about its operating "
+                                          "point, with exactly its effects")
+    timed(sim)
+    sim.add_argument("--method", default=None, help="solve_ivp method (default: DOP853, or "
+                                                    "Radau for stiff scenes)")
+    sim.add_argument("--rtol", type=float, default=1e-10, help="relative tolerance")
+    sim.add_argument("--atol", type=float, default=1e-12, help="absolute tolerance")
+    sim.set_defaults(func=_cmd_simulate)
+    res = sub.add_parser("response", help="the linear model's response (chapter 9.3) to an "
+                                          "initial state and inputs")
+    timed(res)
+    res.add_argument("--step", nargs="+", metavar="u:NAME=VALUE",
+                     help="step inputs [N*m or N] from t = 0")
+    res.add_argument("--impulse", nargs="+", metavar="u:NAME=VALUE",
+                     help="impulses at t = 0 [N*m*s or N*s]")
+    res.add_argument("--harmonic", nargs="+", metavar="u:NAME=AMP@W",
+                     help="harmonic inputs AMP sin(W t) [N*m or N, rad/s]")
+    res.add_argument("--method", choices=("modal", "exact"), default="modal",
+                     help="modal superposition (default) or the matrix exponential")
+    res.add_argument("--nonlinear", action="store_true",
+                     help="also simulate the nonlinear dynamics from the same state and "
+                          "report the difference")
+    res.set_defaults(func=_cmd_response)
+    val = sub.add_parser("validity", help="how large a motion the linear model stays "
+                                          "accurate for, per mode")
+    val.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
+    val.add_argument("--amplitudes", nargs="+", type=float, default=None,
+                     help="initial amplitudes [rad or m] (default: a sweep)")
+    val.add_argument("--periods", type=float, default=5, help="horizon in periods (default 5)")
+    val.add_argument("--tolerance", type=float, default=0.01,
+                     help="relative error that limits the radius (default 0.01)")
+    val.add_argument("--modes", nargs="+", type=int, default=None,
+                     help="mode indices as in the mode table (default: every non-rigid one)")
+    val.add_argument("--direction", default=None,
+                     help="a coordinate name instead of the modes, e.g. elbow or v:elbow")
+    val.add_argument("--out-dir", default=None, help="write the plots into this folder")
+    val.set_defaults(func=_cmd_validity)
+    return [tra, sim, res, val]

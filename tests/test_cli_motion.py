@@ -1,0 +1,98 @@
+"""pinlin simulate, response and validity from the command line: the same numbers as the
+Python API, files written where asked, one-line errors for bad options."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pinlin
+from pinlin.cli import main
+
+
+def run(capfd, *argv):
+    code = main(list(argv))
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
+def test_simulate_writes_what_the_api_computes(capfd, tmp_path):
+    csv, png = tmp_path / "sim.csv", tmp_path / "sim.png"
+    code, out, err = run(capfd, "simulate", "pendulum", "--t-end", "1", "--dt", "0.05",
+                         "--x0", "q:hinge=0.1", "--out", str(csv), "--plot", str(png))
+    assert code == 0, err
+    assert "nonlinear" in out and "energy change" in out
+    header, *rows = csv.read_text().splitlines()
+    assert header.split(",")[:3] == ["t", "q:hinge", "v:hinge"]
+    table = np.array([[float(x) for x in r.split(",")] for r in rows])
+    t = np.arange(21) * 0.05
+    sim = pinlin.simulate("pendulum", t, dx0=np.array([0.1, 0.0]))
+    np.testing.assert_array_equal(table[:, 0], sim.t)
+    np.testing.assert_array_equal(table[:, 1:3], sim.z)
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_response_writes_what_the_api_computes(capfd, tmp_path):
+    npz = tmp_path / "r.npz"
+    code, out, err = run(capfd, "response", "double_pendulum", "--t-end", "2", "--x0",
+                         "shoulder=0.05", "--step", "u:elbow=0.1", "--harmonic",
+                         "u:shoulder=0.2@3.0", "--out", str(npz))
+    assert code == 0, err
+    data = np.load(npz)
+    model = pinlin.linearize("double_pendulum")
+    u = pinlin.step({"u:elbow": 0.1}) + pinlin.harmonic({"u:shoulder": 0.2}, 3.0)
+    x0 = np.zeros(4)
+    x0[model.state_names.index("q:shoulder")] = 0.05
+    res = pinlin.response(model, data["t"], x0=x0, u=u)
+    assert list(data["names"][:4]) == list(model.state_names)
+    np.testing.assert_array_equal(data["values"], res.x)
+
+
+def test_response_against_the_nonlinear_simulation(capfd):
+    code, out, err = run(capfd, "response", "pendulum", "--t-end", "2", "--x0", "q:hinge=0.01",
+                         "--nonlinear")
+    assert code == 0, err
+    line = next(x for x in out.splitlines() if x.startswith("nonlinear simulation"))
+    relative = float(line.split("(")[1].split()[0])
+    assert relative < 1e-3   # a 0.01 rad swing: the error is O(amplitude^2)
+
+
+def test_validity_prints_the_radius_and_writes_plots(capfd, tmp_path):
+    code, out, err = run(capfd, "validity", "pendulum", "--periods", "2", "--out-dir",
+                         str(tmp_path / "v"))
+    assert code == 0, err
+    assert "radius" in out.lower()
+    assert sorted(p.suffix for p in (tmp_path / "v").iterdir()) == [".png", ".png"]
+
+
+BAD = {
+    "t_end_negative": (["simulate", "pendulum", "--t-end", "-1"], "--t-end"),
+    "dt_zero": (["response", "pendulum", "--t-end", "1", "--dt", "0"], "--dt"),
+    "x0_unknown": (["simulate", "pendulum", "--t-end", "1", "--x0", "q:nope=1"],
+                   "'q:nope' is not one of"),
+    "x0_not_assignment": (["simulate", "pendulum", "--t-end", "1", "--x0", "hinge"],
+                          "expected NAME=VALUE"),
+    "x0_not_number": (["response", "pendulum", "--t-end", "1", "--x0", "hinge=abc"],
+                      "expected a number"),
+    "step_unknown_input": (["response", "pendulum", "--t-end", "1", "--step", "u:knee=1"],
+                           "'u:knee' is not one of"),
+    "harmonic_without_w": (["response", "pendulum", "--t-end", "1", "--harmonic",
+                            "u:hinge=1"], "AMPLITUDE@W"),
+    "out_suffix": (["simulate", "pendulum", "--t-end", "1", "--out", "x.txt"],
+                   "unknown format '.txt'"),
+    "plot_suffix": (["response", "pendulum", "--t-end", "1", "--plot", "x.jpg"],
+                    "expected a .png"),
+    "nonlinear_with_inputs": (["response", "pendulum", "--t-end", "1", "--step", "u:hinge=1",
+                               "--nonlinear"], "--nonlinear"),
+    "validity_tolerance": (["validity", "pendulum", "--tolerance", "-1"], "tolerance"),
+    "validity_out_dir_file": (["validity", "pendulum", "--out-dir", __file__],
+                              "it is a file, not a folder"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_motion_options_give_one_line_and_exit_2(case, capfd):
+    argv, words = BAD[case]
+    code, _, err = run(capfd, *argv)
+    assert code == 2 and err.count("\n") == 1 and err.startswith("pinlin: error: "), err
+    assert words in err, err
