@@ -61,6 +61,12 @@ class ModalEnergy:
         body_kinetic: Kinetic share per body (modes x bodies), rows sum to 1; None unless a
             scene was given.
         body_names: Its column names (link names, then ``armature`` when rotors have inertia).
+        body_potential: Potential share per body (modes x len(body_potential_names)), rows
+            sum to 1 (NaN rows for rigid modes): each body's gravity potential and the
+            springs of the joint that carries it, plus a ``constraints`` column for the
+            geometric stiffness of loop forces, which no body owns; None unless a scene was
+            given, and for a rotating scene (its centrifugal potential is not split).
+        body_potential_names: Its column names.
     """
 
     kinetic: np.ndarray
@@ -74,6 +80,8 @@ class ModalEnergy:
     rigid: np.ndarray
     body_kinetic: np.ndarray | None = None
     body_names: tuple[str, ...] = ()
+    body_potential: np.ndarray | None = None
+    body_potential_names: tuple[str, ...] = ()
 
     def table(self) -> str:
         """One line per mode: frequency and the largest kinetic and potential shares."""
@@ -131,14 +139,17 @@ def modal_energy(modes: ModalAnalysis, scene: Scene | None = None) -> ModalEnerg
     joints = tuple(dict.fromkeys(s.split("[")[0] for s in names))
     groups = np.array([[s.split("[")[0] == j for s in names] for j in joints], dtype=float)
     body, body_names = (None, ()) if scene is None else _bodies(model, scene, phi)
+    pot_body, pot_names = (None, ()) if scene is None else _body_potential(model, scene, phi,
+                                                                           pot_total)
+    if pot_body is not None:
+        pot_body[no_potential | modes.rigid[index]] = np.nan
     arrays = [kinetic @ groups.T, potential @ groups.T, kinetic, potential,
               index, modes.eigenvalues[index], modes.rigid[index].copy()]
-    if body is not None:
-        arrays.append(body)
-    for arr in arrays:
-        arr.flags.writeable = False
+    for arr in [*arrays, body, pot_body]:
+        if arr is not None:
+            arr.flags.writeable = False
     return ModalEnergy(arrays[0], arrays[1], joints, arrays[2], arrays[3], names, arrays[4],
-                       arrays[5], arrays[6], body, body_names)
+                       arrays[5], arrays[6], body, body_names, pot_body, pot_names)
 
 
 def _bodies(model: LinearModel, scene: Scene, phi: np.ndarray
@@ -183,6 +194,78 @@ def _bodies(model: LinearModel, scene: Scene, phi: np.ndarray
     total = E.sum(axis=1, keepdims=True)
     with np.errstate(divide="ignore", invalid="ignore"):
         return E / total, tuple(names)
+
+
+#: Step of the second differences of each body's gravity potential along a mode shape
+#: (scaled to a largest entry of 1) [rad or m]: truncation ~h^2, rounding ~eps |V| / h^2,
+#: about 1e-8 of the potential energy.
+POTENTIAL_STEP = 1e-3
+
+
+def _shape_matrix(model: LinearModel, scene: Scene, n: int) -> np.ndarray:
+    """R mapping the model's position shape to all of the robot's coordinates."""
+    system = scene.system
+    coords = [s[2:] for s in model.state_names[:n]]
+    if "R" in model.info:
+        R = np.asarray(model.info["R"], dtype=float)
+    elif coords == list(system.coordinate_names):
+        R = np.eye(system.nv)
+    else:
+        R = None
+    if R is None or R.shape != (system.nv, n):
+        raise ModelError(f"scene '{scene.name}' does not match model '{model.name}': its "
+                         f"coordinates are not the model's ({', '.join(coords[:4])}...)")
+    return R
+
+
+def _body_potential(model: LinearModel, scene: Scene, phi: np.ndarray, total: np.ndarray
+                    ) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """Potential shares per body (modes x bodies [+ constraints]) and the column names.
+
+    Body b's share is the second derivative of its gravity potential -m_b g . c_b(q) along
+    the shape (real and imaginary parts, central differences with :data:`POTENTIAL_STEP`)
+    plus 1/2 k |dq_j|^2 of the springs on the joint that carries it; what the model's
+    stiffness holds beyond these (the loop forces' geometric stiffness) is the
+    ``constraints`` column."""
+    import pinocchio as pin
+
+    system = scene.system
+    if system.rotation is not None:
+        return None, ()
+    pm = system.model
+    q0 = np.asarray(model.operating_point.q, dtype=float)
+    data = pin.Data(pm)
+    R = _shape_matrix(model, scene, phi.shape[0])
+    shapes = R @ phi
+    g = np.asarray(pm.gravity.linear, dtype=float)
+
+    def potentials(q: np.ndarray) -> np.ndarray:
+        pin.forwardKinematics(pm, data, q)
+        return np.array([-pm.inertias[j].mass * g @ (data.oMi[j] * pm.inertias[j].lever)
+                         for j in range(1, pm.njoints)])
+
+    h = POTENTIAL_STEP
+    E = np.zeros((phi.shape[1], pm.njoints - 1))
+    base = potentials(q0)
+    for k in range(phi.shape[1]):
+        scale = max(float(np.abs(shapes[:, k]).max()), np.finfo(float).tiny)
+        for part in (shapes[:, k].real, shapes[:, k].imag):
+            if not np.any(part):
+                continue
+            d = part / scale
+            second = (potentials(pin.integrate(pm, q0, h * d)) - 2 * base
+                      + potentials(pin.integrate(pm, q0, -h * d))) / h**2
+            E[k] += second * scale**2
+    stiffness = np.asarray(system.stiffness, dtype=float)
+    for j in system.joints.values():
+        sl = slice(j.idx_v, j.idx_v + j.nv)
+        E[:, j.id - 1] += (stiffness[sl, None] * np.abs(shapes[sl]) ** 2).sum(axis=0)
+    names = [_link_name(pm, jid) for jid in range(1, pm.njoints)]
+    if system.constraints:
+        E = np.hstack([E, (total - E.sum(axis=1))[:, None]])
+        names.append("constraints")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return E / E.sum(axis=1, keepdims=True), tuple(names)
 
 
 def _link_name(pm, jid: int) -> str:  # pm: pinocchio.Model

@@ -523,3 +523,58 @@ def test_callable_input_is_held_between_samples():
     by_samples = pinlin.response(model, t, u=np.sin(3 * t))
     np.testing.assert_array_equal(by_call.x, by_samples.x)
     assert any("zero-order hold" in note for note in by_call.notes)
+
+
+@pytest.mark.parametrize("name", ["double_pendulum", "ur5_arm"])
+def test_potential_energy_per_body_adds_up_to_the_stiffness(name):
+    """Per body: the second derivative of each body's gravity potential along the mode
+    (differences of -m g . c computed from Pinocchio's placements) plus its joint's springs;
+    their sum equals phi^H K phi of the model's analytic stiffness (RNEA derivatives, another
+    computation) to the differences' accuracy (~1e-8), so the shares sum to 1 with no
+    remainder."""
+    from pinlin import modal_energy
+
+    scene = pinlin.Scene.resolve(name)
+    model = pinlin.linearize(scene)
+    modes = pinlin.modal(model)
+    energy = modes.energy(scene)
+    assert energy.body_potential is not None and "constraints" not in energy.body_potential_names
+    nv = model.M.shape[0]
+    phi = modes.right_vectors[:nv, modes.modes()]
+    total = (phi.conj() * (0.5 * (model.K + model.K.T) @ phi)).real.sum(axis=0)
+    shares, _ = modal_energy._body_potential(model, scene, phi, total)
+    np.testing.assert_allclose(np.nansum(shares, axis=1), 1.0, rtol=1e-12)
+    # The method itself: the bodies' potentials (all at once) plus the springs along each
+    # mode equal the analytic stiffness's quadratic form.
+    system = scene.system
+    pm = system.model
+    import pinocchio as pin
+
+    data = pin.Data(pm)
+    g = pm.gravity.linear
+
+    def potential(q):
+        pin.forwardKinematics(pm, data, q)
+        return sum(-pm.inertias[j].mass * g @ (data.oMi[j] * pm.inertias[j].lever)
+                   for j in range(1, pm.njoints))
+
+    q0 = model.operating_point.q
+    for k in range(phi.shape[1]):
+        d = phi[:, k].real / np.abs(phi[:, k].real).max()
+        h = 1e-3
+        second = (potential(pin.integrate(pm, q0, h * d)) - 2 * potential(q0)
+                  + potential(pin.integrate(pm, q0, -h * d))) / h**2
+        springs = float((system.stiffness * d**2).sum())
+        expected = float(d @ (0.5 * (model.K + model.K.T)) @ d)
+        assert abs(second + springs - expected) <= 1e-6 * abs(expected)
+
+
+def test_potential_energy_of_a_stiff_spring_lives_in_its_body():
+    scene = pinlin.Scene.from_robot("double_pendulum", effects={
+        "gravity": [0, 0, -9.81], "springs": {"joint2": {"stiffness": 500.0}}})
+    modes = pinlin.modal(pinlin.linearize(scene))
+    energy = modes.energy(scene)
+    high = int(np.argmax(energy.eigenvalues.imag))
+    column = energy.body_potential_names.index(
+        next(n for n in energy.body_potential_names if n != energy.body_potential_names[0]))
+    assert energy.body_potential[high, column] > 0.9
