@@ -2,7 +2,10 @@
 coordinates z, Newton on Phi(q) = 0 with z held, and the velocity projection R (chapter 9.1.1).
 
 Coordinates are velocity (tangent-space) indices throughout; a configuration moves by
-``pin.integrate``. Redundant rows (a planar loop closed by a 3-D point constraint has one) are
+``pin.integrate``, so a floating base's six coordinates (body-frame twist, a Lie group) take
+part like any joint's: Newton may move them and the partition may make them dependent or
+independent (states then named ``q:root_joint[i]``). Redundant rows (a planar loop closed by a
+3-D point constraint has one; two point contacts on one rigid body share their distance) are
 found by a column-pivoted QR of Phi_q^T and dropped.
 """
 
@@ -46,11 +49,18 @@ class Partition:
     condition: float
 
 
-def independent_rows(jac: np.ndarray, loop_rows: list[range], source, loops) -> np.ndarray:
+def independent_rows(jac: np.ndarray, groups: list[tuple[str, str, range]], source
+                     ) -> np.ndarray:
     """Rows of ``jac`` that are linearly independent (pivoted QR of jac^T), in order.
 
+    Args:
+        jac: The constraint Jacobian (m x nv).
+        groups: (scene field, description, rows) of each loop and contact
+            (:attr:`pinlin.constraints.ConstraintSet.groups`).
+        source: The scene file, for messages.
+
     Raises:
-        SceneError: a loop (rows ``loop_rows[i]``) contributes no independent row at all.
+        SceneError: a loop or contact contributes no independent row at all.
     """
     if jac.shape[0] == 0:
         return np.zeros(0, dtype=int)
@@ -60,10 +70,10 @@ def independent_rows(jac: np.ndarray, loop_rows: list[range], source, loops) -> 
     rank = int(np.sum(diag > RANK_TOL * max(scale, 1e-300)))
     keep = np.sort(piv[:rank])
     kept = set(keep.tolist())
-    for i, (loop, own) in enumerate(zip(loops, loop_rows, strict=True)):
+    for fld, what, own in groups:
         if not kept.intersection(own):
-            raise SceneError(source, f"loops[{i}]", f"loop '{loop.name}' adds no independent "
-                                                    "constraint: every row repeats others")
+            raise SceneError(source, fld, f"{what} adds no independent constraint: every row "
+                                          "repeats others")
     return keep
 
 
@@ -72,8 +82,9 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
     """Independent rows and coordinates at ``q`` (the scene's ``independent`` or a choice).
 
     pinlin's choice: dependent coordinates are the pivots of a column-pivoted QR of the
-    independent rows of Phi_q, with unactuated coordinates preferred as dependent, so that
-    actuated joints stay independent where the mechanism allows.
+    independent rows of Phi_q, with unactuated coordinates preferred as dependent (columns of
+    actuated ones scaled by 1e-3), so that actuated joints stay independent where the mechanism
+    allows: a standing robot's floating base is dependent, its states are joints.
 
     Raises:
         SceneError: the scene's ``independent`` list has the wrong size, names an unknown joint,
@@ -83,7 +94,7 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
     cons = system.constraints
     src = system.scene.source
     jac = cons.jacobian(q) if jac is None else jac
-    rows = independent_rows(jac, cons.loop_rows, src, system.scene.loops)
+    rows = independent_rows(jac, cons.groups, src)
     kept = set(rows.tolist())
     dropped = tuple(n for k, n in enumerate(cons.row_names) if k not in kept)
     G = jac[rows]

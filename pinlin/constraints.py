@@ -1,18 +1,37 @@
-"""Holonomic constraints Phi(q) = 0: loop closures between frames and URDF mimic couplings.
+"""Holonomic constraints Phi(q) = 0: loop closures, contacts with the world and URDF mimic
+couplings.
 
 Rows, in the world frame (the rotating frame when the scene spins):
 
 - ``point`` loop: Phi = p1 - p2, the frame origins [m] (3 rows);
 - ``weld`` loop: Phi = [p1 - p2; log3(R1 R2^T)] [m, rad] (6 rows);
+- ``point`` contact: Phi = p - p_a, the frame origin against its anchor [m] (3 rows);
+- ``weld`` contact: Phi = [p - p_a; log3(R R_a^T)] [m, rad] (6 rows);
 - mimic coupling: Phi = q_mimic - multiplier * q_joint - offset [rad or m] (1 row).
 
+A contact is a loop whose second frame is the world at the anchor (p_a, R_a): the contact
+frame's world placement at the anchoring configuration, by default the scene's posture
+(``operating_point.q`` on the reference posture, before assembly; :meth:`System.anchored_at`
+anchors elsewhere). Its rows are the loop rows with the second frame's velocity, Jacobian and
+Jacobian variation zero. :attr:`ConstraintSet.contacts` lists each contact's frame, anchor and
+rows (the hook an exporter needs to hold the same frames in another engine).
+
 Everything is in the tangent space: ``jacobian(q)`` is dPhi(q (+) dq)/d(dq) (m x nv) and
-``hessian(q, lam)`` is the symmetric Hessian of lam^T Phi(q (+) dq) at dq = 0, exact: along
-geodesics (v' = 0) d^2/dt^2 Phi(q (+) t v) = d/dt(Phi_q) v = v^T (Phi_qq) v, and Pinocchio's
-Jacobian time variation at v = e_j is dJ/dq_j (for a weld at an assembled configuration the
-rotation rows add -omega1 x omega2, the second-order term of log(exp(a) exp(-b))). The constraint
-force the closure applies is Phi_q^T lam, with lam the
-force [N] (and torque [N*m]) on frame1's body, expressed in the world frame.
+``hessian(q, lam)`` is the derivative of the constraint force Phi_q(q (+) dq)^T lam at dq = 0,
+exact (the geometric stiffness). Pinocchio's Jacobian time variation at v = e_j is
+d(Phi_q)/d(dq_j) for the point rows; the weld rotation rows, Jlog3(E) E^T (J1 - E J2) with
+E = R1 R2^T, add -1/2 d_j x d_k - d_j x w2_k at an assembled configuration (E = I), with w1, w2
+the frames' world angular-velocity Jacobians and d = w1 - w2 (derivatives of Jlog3(E) E^T =
+I - 1/2 [log E] and of E). For joints whose tangent coordinates commute (revolute, prismatic,
+continuous) this derivative is symmetric: it is lam^T Phi_qq, and rounding is removed by taking
+its symmetric part. On Lie-group joints (a free flyer, a spherical or planar joint) the
+derivatives along two of the joint's own coordinates do not commute,
+X_j X_k Phi - X_k X_j Phi = Phi_q [e_j, e_k], and the exact, non-symmetric block is kept: a
+standing robot's base carries the contact forces' wrench, and Pinocchio's RNEA derivative of
+gravity has the matching antisymmetric part (they cancel in the sum, as the base is not
+actuated). The constraint force the closure applies is Phi_q^T lam, with lam the force [N] (and
+torque [N*m], about the frame's origin) on frame1's body, expressed in the world frame; for a
+contact the force the world applies to the robot.
 """
 
 from __future__ import annotations
@@ -20,6 +39,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -27,6 +47,9 @@ import pinocchio as pin
 from .exceptions import ModelError, SceneError, UrdfError
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+#: Prefix of a contact's constraint rows: ``contact:<name>.x`` ... ``.rz``.
+CONTACT_PREFIX = "contact:"
+_AXES = {"point": ("x", "y", "z"), "weld": ("x", "y", "z", "rx", "ry", "rz")}
 
 
 @dataclass(frozen=True)
@@ -37,6 +60,45 @@ class MimicCoupling:
     joint: str
     multiplier: float
     offset: float
+
+
+@dataclass(frozen=True, eq=False)
+class AnchoredContact:
+    """A scene contact as the constraint set holds it.
+
+    Attributes:
+        name: The contact's name.
+        type: ``"point"`` (3 rows) or ``"weld"`` (6 rows).
+        frame: Frame (link) name.
+        frame_id: Its index in the system's kinematic model (``System.kin_model``).
+        rows: Its constraint rows in :attr:`ConstraintSet.row_names`.
+        position: Anchor position in the world [m] (read-only, 3).
+        rotation: Anchor orientation in the world (read-only, 3 x 3): the frame's at the
+            anchoring configuration.
+    """
+
+    name: str
+    type: str
+    frame: str
+    frame_id: int
+    rows: range
+    position: np.ndarray
+    rotation: np.ndarray
+
+    @property
+    def placement(self) -> pin.SE3:
+        """The anchor as a fresh ``pin.SE3`` (world placement the frame is held at)."""
+        return pin.SE3(self.rotation.copy(), self.position.copy())
+
+
+class _Closure(NamedTuple):
+    """One loop or contact: frame ids (f2 None: the world at ``anchor``) and first row."""
+
+    kind: str
+    f1: int
+    f2: int | None
+    row: int
+    anchor: pin.SE3 | None
 
 
 def read_mimic_tags(urdf: Path) -> tuple[MimicCoupling, ...]:
@@ -61,41 +123,53 @@ def read_mimic_tags(urdf: Path) -> tuple[MimicCoupling, ...]:
 
 
 class ConstraintSet:
-    """The scene's loops and mimic couplings, evaluated on the system's kinematic model.
+    """The scene's loops, contacts and mimic couplings, evaluated on the system's kinematic
+    model.
+
+    Args:
+        system: The system being built.
+        mimics: Its mimic couplings.
+        anchor_q: Configuration (nq) whose contact-frame placements are the anchors; None: the
+            scene's posture (``pinlin.operating_point.configuration``).
 
     Attributes:
         row_names: One name per row: ``<loop>.x`` ... (``.rx``... for weld rotations),
-            ``mimic:<joint>``.
+            ``contact:<contact>.x`` ..., ``mimic:<joint>``.
         size: Number of rows m.
+        loop_rows: Constraint rows of each loop, in scene order.
+        contacts: Each contact's frame, anchor and rows, in scene order.
+        groups: (scene field, description, rows) of every loop and contact, for messages.
     """
 
-    def __init__(self, system, mimics: tuple[MimicCoupling, ...] = ()) -> None:
+    def __init__(self, system, mimics: tuple[MimicCoupling, ...] = (),
+                 anchor_q: np.ndarray | None = None) -> None:
         self.system = system
-        src = system.scene.source
-        self._loops: list[tuple[str, int, int, int]] = []  # (type, fid1, fid2, first row)
-        #: Constraint rows of each loop, in scene order.
+        self._mimics = mimics
+        scene = system.scene
+        self._closures: list[_Closure] = []
         self.loop_rows: list[range] = []
+        self.groups: list[tuple[str, str, range]] = []
         names: list[str] = []
-        for i, loop in enumerate(system.scene.loops):
+        for i, loop in enumerate(scene.loops):
             fld = f"loops[{i}]"
             f1 = system.frame_id(loop.frame1, f"{fld}.frame1")
             f2 = system.frame_id(loop.frame2, f"{fld}.frame2")
             kin = system.kin_model
             if kin.frames[f1].parentJoint == kin.frames[f2].parentJoint:
-                raise SceneError(src, fld, f"frames '{loop.frame1}' and '{loop.frame2}' are on "
-                                           "the same body: the loop constrains nothing")
-            self._loops.append((loop.type, f1, f2, len(names)))
-            self.loop_rows.append(range(len(names), len(names) + (3 if loop.type == "point"
-                                                                  else 6)))
-            axes = ("x", "y", "z") if loop.type == "point" else ("x", "y", "z", "rx", "ry", "rz")
-            names.extend(f"{loop.name}.{a}" for a in axes)
+                raise SceneError(scene.source, fld, f"frames '{loop.frame1}' and '{loop.frame2}' "
+                                                    "are on the same body: the loop constrains "
+                                                    "nothing")
+            rows = self._add(names, loop.type, f1, f2, None, loop.name)
+            self.loop_rows.append(rows)
+            self.groups.append((fld, f"loop '{loop.name}'", rows))
+        self.contacts = self._anchor_contacts(names, anchor_q)
         self._mimic_rows: list[tuple[int, int, float, float, bool, bool]] = []
         for c in mimics:
             jm = system.joint(c.mimic, "effects.mimic")
             jj = system.joint(c.joint, "effects.mimic")
             if jm.nv != 1 or jj.nv != 1:
-                raise SceneError(src, "effects.mimic", f"mimic joint '{c.mimic}' couples "
-                                                       "joints that are not 1-DoF")
+                raise SceneError(scene.source, "effects.mimic", f"mimic joint '{c.mimic}' "
+                                                                "couples joints that are not 1-DoF")
             self._mimic_rows.append((jm.idx_v, jj.idx_v, c.multiplier, c.offset,
                                      jm.continuous, jj.continuous))
             names.append(f"mimic:{c.mimic}")
@@ -104,6 +178,53 @@ class ConstraintSet:
         self.row_names = tuple(names)
         self.size = len(names)
         self._support = self._support_columns()
+        self._lie_blocks = [slice(j.idx_v, j.idx_v + j.nv) for j in system.joints.values()
+                            if j.nv > 1 and j.nq != j.nv]
+
+    def _add(self, names: list[str], kind: str, f1: int, f2: int | None,
+             anchor: pin.SE3 | None, label: str) -> range:
+        rows = range(len(names), len(names) + len(_AXES[kind]))
+        self._closures.append(_Closure(kind, f1, f2, len(names), anchor))
+        names.extend(f"{label}.{a}" for a in _AXES[kind])
+        return rows
+
+    def _anchor_contacts(self, names: list[str], anchor_q: np.ndarray | None
+                         ) -> tuple[AnchoredContact, ...]:
+        """Check the scene's contacts against the robot and anchor them at ``anchor_q``."""
+        system = self.system
+        scene = system.scene
+        if not scene.contacts:
+            return ()
+        if anchor_q is None:
+            from .operating_point import configuration
+
+            anchor_q = configuration(system)
+        kin, kd = system.kin_model, pin.Data(system.kin_model)
+        pin.framesForwardKinematics(kin, kd, system.kin_q(np.asarray(anchor_q, dtype=float)))
+        world = 0 if system.rotation is None else 1  # the spin joint carries the scene's world
+        out = []
+        for i, contact in enumerate(scene.contacts):
+            fld = f"contacts[{i}]"
+            fid = system.frame_id(contact.frame, f"{fld}.frame")
+            if kin.frames[fid].parentJoint == world:
+                raise SceneError(scene.source, f"{fld}.frame",
+                                 f"frame '{contact.frame}' is fixed to the world (no joint moves "
+                                 "it): a contact there holds nothing; name a frame on a moving "
+                                 "body (a foot)")
+            placement = kd.oMf[fid].copy()
+            rows = self._add(names, contact.type, fid, None, placement,
+                             f"{CONTACT_PREFIX}{contact.name}")
+            self.groups.append((fld, f"contact '{contact.name}'", rows))
+            position, rotation = placement.translation.copy(), placement.rotation.copy()
+            position.flags.writeable = rotation.flags.writeable = False
+            out.append(AnchoredContact(contact.name, contact.type, contact.frame, fid, rows,
+                                       position, rotation))
+        return tuple(out)
+
+    def anchored_at(self, system, q: np.ndarray) -> ConstraintSet:
+        """The same constraints for ``system`` with the contacts anchored at configuration
+        ``q`` (nq)."""
+        return ConstraintSet(system, self._mimics, anchor_q=q)
 
     def __bool__(self) -> bool:
         return self.size > 0
@@ -112,11 +233,11 @@ class ConstraintSet:
     def residual(self, q: np.ndarray) -> np.ndarray:
         """Phi(q) [m, rad]."""
         out = np.zeros(self.size)
-        if self._loops:
+        if self._closures:
             kin, kd = self.system.kin_model, self.system.kin_data
             pin.framesForwardKinematics(kin, kd, self.system.kin_q(q))
-            for kind, f1, f2, row in self._loops:
-                m1, m2 = kd.oMf[f1], kd.oMf[f2]
+            for kind, f1, f2, row, anchor in self._closures:
+                m1, m2 = kd.oMf[f1], (kd.oMf[f2] if f2 is not None else anchor)
                 out[row:row + 3] = m1.translation - m2.translation
                 if kind == "weld":
                     out[row + 3:row + 6] = pin.log3(m1.rotation @ m2.rotation.T)
@@ -130,13 +251,19 @@ class ConstraintSet:
         """Phi_q (m x nv), tangent space."""
         sysm = self.system
         out = np.zeros((self.size, sysm.nv))
-        if self._loops:
+        if self._closures:
             kin, kd = sysm.kin_model, sysm.kin_data
             pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
             pin.updateFramePlacements(kin, kd)
             cols = sysm.kin_columns
-            for kind, f1, f2, row in self._loops:
+            for kind, f1, f2, row, anchor in self._closures:
                 J1 = pin.getFrameJacobian(kin, kd, f1, LWA)[:, cols]
+                if f2 is None:
+                    out[row:row + 3] = J1[:3]
+                    if kind == "weld":
+                        E = kd.oMf[f1].rotation @ anchor.rotation.T
+                        out[row + 3:row + 6] = pin.Jlog3(E) @ E.T @ J1[3:]
+                    continue
                 J2 = pin.getFrameJacobian(kin, kd, f2, LWA)[:, cols]
                 out[row:row + 3] = J1[:3] - J2[:3]
                 if kind == "weld":
@@ -150,19 +277,21 @@ class ConstraintSet:
 
     @property
     def has_welds(self) -> bool:
-        return any(kind == "weld" for kind, *_ in self._loops)
+        """Whether some loop or contact is a weld."""
+        return any(c.kind == "weld" for c in self._closures)
 
     def bias_acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """gamma = Phi_qq[v, v] (m): the constraint acceleration at (q, v) with zero joint
         acceleration, so that the loops stay closed when Phi_q a = -gamma [m/s^2]. Point
-        loops: the difference of the two frames' classical accelerations (LOCAL_WORLD_ALIGNED,
-        from ``forwardKinematics(q, v, 0)``); mimic rows are linear: 0.
+        loops and contacts: the difference of the two frames' classical accelerations
+        (LOCAL_WORLD_ALIGNED, from ``forwardKinematics(q, v, 0)``; the world's is zero); mimic
+        rows are linear: 0.
 
         Raises:
-            ModelError: a weld loop (not supported at a moving state yet).
+            ModelError: a weld loop or contact (not supported at a moving state yet).
         """
         out = np.zeros(self.size)
-        if not self._loops:
+        if not self._closures:
             return out
         self._refuse_welds()
         sysm = self.system
@@ -170,89 +299,102 @@ class ConstraintSet:
         pin.forwardKinematics(kin, kd, sysm.kin_q(q), sysm.kin_v(v, spin=False),
                               np.zeros(kin.nv))
         pin.updateFramePlacements(kin, kd)
-        for _, f1, f2, row in self._loops:
-            out[row:row + 3] = (pin.getFrameClassicalAcceleration(kin, kd, f1, LWA).linear
-                                - pin.getFrameClassicalAcceleration(kin, kd, f2, LWA).linear)
+        for _, f1, f2, row, _ in self._closures:
+            out[row:row + 3] = pin.getFrameClassicalAcceleration(kin, kd, f1, LWA).linear
+            if f2 is not None:
+                out[row:row + 3] -= pin.getFrameClassicalAcceleration(kin, kd, f2, LWA).linear
         return out
 
     def jacobian_variation(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Phi_qq[w, .] (m x nv): the time variation of Phi_q along a velocity w [1/s], from
-        ``computeJointJacobiansTimeVariation(q, w)`` (point loops; mimic rows: 0).
+        ``computeJointJacobiansTimeVariation(q, w)`` (point loops and contacts; mimic rows: 0).
 
         Raises:
-            ModelError: a weld loop (not supported at a moving state yet).
+            ModelError: a weld loop or contact (not supported at a moving state yet).
         """
         sysm = self.system
         out = np.zeros((self.size, sysm.nv))
-        if not self._loops:
+        if not self._closures:
             return out
         self._refuse_welds()
         kin, kd = sysm.kin_model, sysm.kin_data
         pin.computeJointJacobiansTimeVariation(kin, kd, sysm.kin_q(q), sysm.kin_v(w, spin=False))
         cols = sysm.kin_columns
-        for _, f1, f2, row in self._loops:
-            out[row:row + 3] = (pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:3, cols]
-                                - pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:3, cols])
+        for _, f1, f2, row, _ in self._closures:
+            out[row:row + 3] = pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:3, cols]
+            if f2 is not None:
+                out[row:row + 3] -= pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:3, cols]
         return out
 
     def _refuse_welds(self) -> None:
         if self.has_welds:
-            raise ModelError(f"scene '{self.system.scene.name}': weld loops at a moving state "
-                             "are not supported yet (point loops and mimic couplings are)")
+            raise ModelError(f"scene '{self.system.scene.name}': weld loops and contacts at a "
+                             "moving state are not supported yet (point loops and contacts and "
+                             "mimic couplings are)")
 
     def hessian(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        """sum_i lam_i Phi_i,qq (nv x nv, symmetric) at an assembled configuration q.
+        """d(Phi_q^T lam)/d(dq) at dq = 0 (nv x nv) at an assembled configuration q, lam held:
+        the geometric stiffness of the constraint forces (module docstring). Symmetric (it is
+        sum_i lam_i Phi_i,qq) but for the blocks of Lie-group joints (a free flyer's), which
+        keep their exact antisymmetric part.
 
-        Mimic rows are linear in the joint coordinates and contribute nothing. For a loop row
-        the second time derivative along q (+) t v is d/dt(Phi_q) v, with d/dt(Phi_q) linear in
-        v: one ``computeJointJacobiansTimeVariation`` per coordinate j of the loops' support
-        gives the row j of the Hessian (d/dt(J) at v = e_j is dJ/dq_j), the weld rotation rows
-        adding -w1 x w2; the symmetric part is the Hessian (polarization identity).
+        Mimic rows are linear in the joint coordinates and contribute nothing. For a loop or
+        contact row, one ``computeJointJacobiansTimeVariation`` per coordinate j of the
+        closures' support gives d(Phi_q)/d(dq_j) (at v = e_j, d/dt(J) is dJ/dq_j), the weld
+        rotation rows adding -1/2 d_j x d_k - d_j x w2_k.
         """
         sysm = self.system
         nv = sysm.nv
-        out = np.zeros((nv, nv))
-        if not self._loops or not np.any(lam[:self._loop_rows()]):
+        out = np.zeros((nv, nv))  # out[j, k] = lam . d(Phi_q e_k)/d(dq_j)
+        if not self._closures or not np.any(lam[:self._loop_rows()]):
             return out
         kin, kd = sysm.kin_model, sysm.kin_data
         qk = sysm.kin_q(q)
         cols = sysm.kin_columns
         pin.computeJointJacobians(kin, kd, qk)
         pin.updateFramePlacements(kin, kd)
-        angular = {}  # world angular-velocity Jacobians of weld frames
-        for kind, f1, f2, _ in self._loops:
+        zero = np.zeros((3, nv))
+        angular = {}  # weld rows: (w1 - w2, w2), world angular-velocity Jacobians (3 x nv)
+        for kind, f1, f2, row, _ in self._closures:
             if kind == "weld":
-                for f in (f1, f2):
-                    angular[f] = pin.getFrameJacobian(kin, kd, f, LWA)[3:, cols]
+                w1 = pin.getFrameJacobian(kin, kd, f1, LWA)[3:, cols]
+                w2 = zero if f2 is None else pin.getFrameJacobian(kin, kd, f2, LWA)[3:, cols]
+                angular[row] = (w1 - w2, w2)
         e = np.zeros(nv)
         for j in self._support:
             e[j] = 1.0
             pin.computeJointJacobiansTimeVariation(kin, kd, qk, sysm.kin_v(e, spin=False))
-            for kind, f1, f2, row in self._loops:
-                dJ1 = pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:, cols]
-                dJ2 = pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:, cols]
-                out[j] += lam[row:row + 3] @ (dJ1[:3] - dJ2[:3])
+            for kind, f1, f2, row, _ in self._closures:
+                dJ = pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:, cols]
+                if f2 is not None:
+                    dJ = dJ - pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:, cols]
+                out[j] += lam[row:row + 3] @ dJ[:3]
                 if kind == "weld":
                     lr = lam[row + 3:row + 6]
-                    out[j] += lr @ (dJ1[3:] - dJ2[3:])
-                    # -w1 x w2 with w1 = J1 e_j, w2 = J2 e_k (and the swap, by symmetrization)
-                    w1 = angular[f1][:, j]
-                    out[j] -= lr @ np.cross(w1, angular[f2].T).T
+                    d, w2 = angular[row]
+                    out[j] += lr @ dJ[3:]
+                    out[j] -= lr @ (0.5 * np.cross(d[:, j], d.T).T + np.cross(d[:, j], w2.T).T)
             e[j] = 0.0
-        return 0.5 * (out + out.T)
+        sym = 0.5 * (out + out.T)
+        for block in self._lie_blocks:
+            sym[block, block] = out.T[block, block]
+        return sym
 
     # ----------------------------------------------------------------------------------------
     def _loop_rows(self) -> int:
         return self.size - len(self._mimic_rows)
 
     def _support_columns(self) -> list[int]:
-        """Velocity indices of the joints that move some loop frame (system coordinates)."""
+        """Velocity indices of the joints that move some loop or contact frame (system
+        coordinates)."""
         sysm = self.system
         kin = sysm.kin_model
         offset = kin.nv - sysm.nv  # the spin coordinate of a rotating scene comes first
         cols: set[int] = set()
-        for _, f1, f2, _ in self._loops:
+        for _, f1, f2, _, _ in self._closures:
             for fid in (f1, f2):
+                if fid is None:
+                    continue
                 jid = kin.frames[fid].parentJoint
                 for sj in kin.supports[jid]:
                     if sj == 0:

@@ -1,4 +1,5 @@
-"""Operating points of constrained systems (loops, mimic couplings) and passive equilibria.
+"""Operating points of constrained systems (loops, contacts, mimic couplings) and passive
+equilibria.
 
 At rest the residual form of the equations of motion is::
 
@@ -6,11 +7,25 @@ At rest the residual form of the equations of motion is::
 
 with f the generalized force at rest (gravity; centrifugal in a rotating scene) and lam the
 constraint forces (the force [N] and torque [N*m] the closure applies to frame1's body, world
-frame). ``solve = "inputs"`` assembles q0 with the independent coordinates z held and solves
-[S, Phi_q^T] [u0; lam] = f - tau_spring in the least-squares sense; what remains is the residual.
-``solve = "positions"`` holds the inputs and finds q0 by Newton on the reduced residual
-R^T (f - tau_spring - S u) over z, whose Jacobian is the reduced stiffness
-R^T (K - lam^T Phi_qq) R of the linear model.
+frame; for a contact, what the world applies to the robot). Every coordinate takes part,
+a floating base's six included: for a standing robot the base's rows say that the contact
+forces carry the weight.
+
+- ``solve = "inputs"`` assembles q0 with the independent coordinates z held and solves
+  [S, Phi_q^T] [u0; lam] = f - tau_spring in the least-squares sense; what remains is the
+  residual. When the columns are dependent (two feet on the ground, or redundant actuation) the
+  solution is a family: the least-norm member is taken and a note says how many directions
+  the family has.
+- ``solve = "forces"`` holds the inputs at the scene's ``u`` and solves
+  Phi_q^T lam = f - tau_spring - S u for lam alone (unique: the independent rows of Phi_q are
+  kept), the user's own split; a residual left over (inputs that cannot balance the robot)
+  is refused with its largest entry.
+- ``solve = "positions"`` holds the inputs and finds q0 by Newton on the reduced residual
+  R^T (f - tau_spring - S u) over z, whose Jacobian is the reduced stiffness
+  R^T (K - lam^T Phi_qq) R of the linear model.
+
+With contacts the notes give each contact's force (:mod:`pinlin.contacts`) and the total
+vertical force against the weight, and a point contact that pulls gets a ContactWarning.
 """
 
 from __future__ import annotations
@@ -21,7 +36,8 @@ import numpy as np
 import pinocchio as pin
 
 from .assembly import Partition, assemble, partition, projection
-from .exceptions import EquilibriumError, ModelError, SceneError
+from .contacts import statics_notes
+from .exceptions import EquilibriumError, SceneError
 from .operating_point import OperatingPoint, residual_tolerance
 
 
@@ -69,9 +85,10 @@ def static_stiffness(system, q: np.ndarray, lam: np.ndarray | None) -> np.ndarra
 def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: bool = False,
                       allow_ill_conditioned: bool = False
                       ) -> tuple[OperatingPoint, ConstrainedPoint]:
-    """Operating point of a scene with constraints and/or ``solve = "positions"``
-    (``allow_ill_conditioned``: accept an M(q0) singular to working precision where the
-    acceleration off equilibrium needs M^-1, see :meth:`pinlin.System.mass_inverse`)."""
+    """Operating point of a scene with constraints and/or ``solve = "positions"`` or
+    ``"forces"`` (``allow_ill_conditioned``: accept an M(q0) singular to working precision
+    where the acceleration off equilibrium needs M^-1, see
+    :meth:`pinlin.System.mass_inverse`)."""
     spec = system.scene.operating_point
     cons = system.constraints
     notes: list[str] = []
@@ -85,29 +102,42 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     G = jac[part.rows]
     f = _held_force(system, q0)
     S = system.input_matrix
-    if spec.solve == "positions":
+    if spec.solve in ("positions", "forces"):
+        if spec.solve == "forces":
+            u0 = input_vector(system, spec.u)
         lam_k = np.linalg.lstsq(G.T, f - S @ u0, rcond=None)[0] if len(part.rows) else \
             np.zeros(0)
     else:
         SG = np.hstack([S, G.T])
         sol, _, rank, _ = np.linalg.lstsq(SG, f, rcond=None)  # rank as matrix_rank's
         u0, lam_k = sol[:S.shape[1]], sol[S.shape[1]:]
-        if rank < S.shape[1] + len(part.rows):
-            notes.append("the inputs and constraint forces that hold q0 are not unique "
-                         "(redundant actuation): the least-norm ones are reported")
+        free = S.shape[1] + len(part.rows) - rank
+        if free:
+            why = ("redundant support" if cons.contacts and len(part.rows) > 0 else
+                   "redundant actuation")
+            notes.append(f"the inputs and constraint forces that hold q0 are not unique "
+                         f"({why}: a family of {free} dimension{'s' if free > 1 else ''}): the "
+                         "least-norm [u0; lam] is reported; give your own split with "
+                         "operating_point.solve = \"forces\" and the inputs u")
     residual = f - S @ u0 - G.T @ lam_k
     lam = np.zeros(cons.size)
     lam[part.rows] = lam_k
-    tol = residual_tolerance(float(np.abs(f).max(initial=0.0)))
+    scale = float(np.abs(f).max(initial=0.0))
+    tol = residual_tolerance(scale)
     worst = int(np.argmax(np.abs(residual))) if residual.size else 0
     equilibrium = bool(residual.size == 0 or abs(residual[worst]) <= tol)
     if not equilibrium:
         name = system.coordinate_names[worst]
         if cons or not allow_non_equilibrium:
-            extra = (" (with loops a non-equilibrium cannot be linearized)" if cons and
-                     allow_non_equilibrium else "; actuate it, change q0, or set "
-                     "operating_point.allow_non_equilibrium = true (--allow-non-equilibrium "
-                     "on the command line)")
+            if spec.solve == "forces":
+                extra = ("; the inputs given (operating_point.u, zero for joints not named) "
+                         "and the constraint forces cannot balance it: give inputs that do, or "
+                         "let pinlin find them (solve = \"inputs\")")
+            elif cons and allow_non_equilibrium:
+                extra = " (with loops or contacts a non-equilibrium cannot be linearized)"
+            else:
+                extra = ("; actuate it, change q0, or set operating_point.allow_non_equilibrium "
+                         "= true (--allow-non-equilibrium on the command line)")
             raise EquilibriumError(
                 f"scene '{system.scene.name}': q0 is not an equilibrium: a generalized force "
                 f"of {residual[worst]:.6g} N or N*m along '{name}' is left over (tolerance "
@@ -117,10 +147,14 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
         notes.append(f"independent coordinates{' (chosen by pinlin)' if part.chosen else ''}: "
                      f"{zn}")
         if part.dropped:
-            notes.append(f"redundant constraint rows dropped: {', '.join(part.dropped)}")
+            contact_rows = any(n.startswith("contact:") for n in part.dropped)
+            notes.append(f"redundant constraint rows dropped: {', '.join(part.dropped)}"
+                         + (" (their forces are reported as zero: any split along them "
+                            "balances as well)" if contact_rows else ""))
         if part.condition > 1e6:
             notes.append(f"near a singular position: the dependent-coordinate Jacobian has "
                          f"condition {part.condition:.3g}")
+        notes.extend(statics_notes(system, lam, scale))
     a0 = np.zeros(system.nv)
     if not equilibrium:  # open chain, opted in
         a0 = -(system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned) @ residual)
@@ -183,10 +217,3 @@ def _passive_equilibrium(system, q: np.ndarray, part: Partition, u0: np.ndarray,
                            f"given q (reduced residual {rz[worst]:.3g} N or N*m on independent "
                            f"coordinate '{system.coordinate_names[part.independent[worst]]}'); "
                            "try another starting q", rz, ())
-
-
-def require_equilibrium_support(system) -> None:
-    """Refuse what this module cannot do."""
-    if system.constraints and system.base_joint is not None:
-        raise ModelError(f"scene '{system.scene.name}': loops on a floating-base robot are not "
-                         "supported by this version of pinlin")

@@ -1,9 +1,10 @@
 """``pinlin.linearize`` and ``pinlin.operating_point``: scene in, model or point out.
 
 Both resolve the operating point the same way (:func:`resolve_operating_point`): a scene with
-constraints (loops, mimic couplings) or with ``solve = "positions"`` goes through the assembly
-and the constrained statics of :mod:`pinlin.equilibrium`; an open chain held by its inputs
-through :func:`pinlin.operating_point.hold_at_rest`.
+constraints (loops, contacts, mimic couplings) or with ``solve = "positions"`` or ``"forces"``
+goes through the assembly and the constrained statics of :mod:`pinlin.equilibrium` (on a
+floating base too: a standing robot); an open chain held by its inputs through
+:func:`pinlin.operating_point.hold_at_rest`.
 
 Every argument is checked before any work: a wrong type, a value out of range or an option that
 does not apply to the request (a step with analytic derivatives, a basis without loops, a
@@ -21,12 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from .conditioning import AccuracyWarning, refuse_condition, singular_to_working_precision
-from .equilibrium import (
-    ConstrainedPoint,
-    input_vector,
-    require_equilibrium_support,
-    solve_constrained,
-)
+from .equilibrium import ConstrainedPoint, input_vector, solve_constrained
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .formulations import (
     linearize_canonical,
@@ -165,7 +161,6 @@ def resolve_operating_point(system: System, q0: np.ndarray, *, allow_non_equilib
             mass_inverse = system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned)
         return at_state(system, q0, *state, mass_inverse=mass_inverse), None
     if system.constraints or constrained or system.scene.operating_point.solve != "inputs":
-        require_equilibrium_support(system)
         return solve_constrained(system, q0, allow_non_equilibrium=allow_non_equilibrium,
                                  allow_ill_conditioned=allow_ill_conditioned)
     return hold_at_rest(system, q0, allow_non_equilibrium=allow_non_equilibrium,
@@ -179,7 +174,8 @@ def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None 
                     mass_inverse: np.ndarray | None = None,
                     allow_ill_conditioned: bool = False) -> OperatingPoint:
     """The operating point the scene asks for, resolved exactly as :func:`linearize` does
-    (loops assembled, constraint forces solved; ``q`` replaces the whole configuration; ``v``
+    (loops assembled, constraint and contact forces solved; ``q`` replaces the whole
+    configuration and anchors the scene's contacts where it puts their frames; ``v``
     and ``u`` give the state, as for :func:`linearize`).
 
     ``mass_inverse`` is M(q0)^-1 when the caller has it already; ``allow_ill_conditioned`` as
@@ -189,6 +185,8 @@ def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None 
     allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
     ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     q0 = _configuration(system, q)
+    if q is not None:
+        system = system.anchored_at(q0)
     state = _given_state(system, v, u)
     if allow is None:
         allow = system.scene.operating_point.allow_non_equilibrium
@@ -235,7 +233,8 @@ def linearize(scene: Scene | System | str | Path, *,
             (relative error of A: truncation from the companion formula, rounding from the
             measured noise of the dynamics; fd3 at ~2x, fd5 at ~1.5x the cost). An estimate
             above 1e-6 gives an :class:`~pinlin.AccuracyWarning`.
-        q: Full configuration (size nq) replacing the scene's operating point.
+        q: Full configuration (size nq) replacing the scene's operating point (the scene's
+            contacts are anchored where it puts their frames).
         v, u: Velocity (nv) [rad/s or m/s] and inputs (nu) [N*m or N]: the state is taken as
             given (as with the scene's ``solve = "none"``; the one not passed is the scene's,
             else zero) and the model is affine, x' = f0 + A x + B u with f0 = [v0; a0]
@@ -272,6 +271,8 @@ def linearize(scene: Scene | System | str | Path, *,
     system = _system(scene)
     _check_basis(system, form)
     q0 = _configuration(system, q)
+    if q is not None:  # contacts hold their frames where this configuration puts them
+        system = system.anchored_at(q0)
     state = _given_state(system, v, u)
     if allow is None:
         allow = system.scene.operating_point.allow_non_equilibrium

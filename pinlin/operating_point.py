@@ -37,8 +37,10 @@ class OperatingPoint:
         tolerance: Residual tolerance used [N*m or N].
         y: Output values at the point (frame positions [m], joint values).
         lam: Constraint forces per constraint row (loops: force [N] and torque [N*m] applied to
-            frame1's body in the world frame; mimic: generalized force [N*m or N]); zero on
-            dropped redundant rows; None without constraints.
+            frame1's body in the world frame; contacts: what the world applies to the robot at
+            the contact frame's origin, world frame; mimic: generalized force [N*m or N]); zero
+            on dropped redundant rows; None without constraints. :attr:`contact_forces` groups
+            the contacts' rows.
         lam_names: Names of the constraint rows, matching ``lam``.
         notes: Human-readable remarks (e.g. an opted-in non-equilibrium).
     """
@@ -68,14 +70,29 @@ class OperatingPoint:
         same object, already checked when this point was made)."""
         return OperatingPoint.trusted(**{**self.__dict__, "y": y})
 
+    @property
+    def contact_forces(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Contact name -> (force [N], torque [N*m]), each of size 3, in the world frame: what
+        the world applies to the robot at the contact frame's origin (a point contact's torque
+        is zero). Read from :attr:`lam` and :attr:`lam_names` (rows ``contact:<name>.x`` ...),
+        so a saved and reloaded point has them too; empty without contacts."""
+        from .contacts import contact_forces
+
+        return contact_forces(self.lam, self.lam_names)
+
     def as_dict(self) -> dict[str, Any]:
-        """Plain-Python form (lists) for JSON export."""
+        """Plain-Python form (lists) for JSON export (``contact_forces`` as
+        ``{name: {"force": [...], "torque": [...]}}``, derived from ``lam``)."""
         out: dict[str, Any] = {}
         for key in ("q", "v", "u", "a", "residual", "y", "lam"):
             val = getattr(self, key)
             out[key] = None if val is None else np.asarray(val).tolist()
         out.update(equilibrium=self.equilibrium, tolerance=self.tolerance, notes=list(self.notes),
                    lam_names=list(self.lam_names))
+        forces = self.contact_forces
+        if forces:
+            out["contact_forces"] = {name: {"force": f.tolist(), "torque": t.tolist()}
+                                     for name, (f, t) in forces.items()}
         return out
 
 

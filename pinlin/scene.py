@@ -25,11 +25,17 @@ File format (paths relative to the scene file)::
     frame1 = "coupler_tip"
     frame2 = "rocker_tip"
 
+    [[contacts]]                         # a frame held where the posture puts it in the world
+    name = "left_foot"                   # unique among loops and contacts
+    frame = "left_sole_link"
+    type = "weld"                        # point (3 rows) | weld (6 rows: a flat foot)
+
     [operating_point]
     q = { shoulder = 0.3 }               # [rad] or [m]; others: reference posture or neutral
     independent = ["shoulder"]           # with loops: coordinates held during assembly = z
-    solve = "inputs"                     # u0 that holds q0 at rest; "positions": passive q0
-    u = { shoulder = 0.0 }               # inputs for solve = "positions" [N*m or N]
+    solve = "inputs"                     # u0 that holds q0 at rest; "positions": passive q0;
+                                         # "forces": u held, constraint forces solved
+    u = { shoulder = 0.0 }               # inputs for solve = "positions"/"forces" [N*m or N]
     allow_non_equilibrium = false        # true: linearize even if q0 cannot be held
 
     [inputs]
@@ -38,6 +44,23 @@ File format (paths relative to the scene file)::
     [outputs]                            # absent: the whole state is the output
     frames = ["tip"]                     # frame positions in the world frame [m]
     joints = ["shoulder", "q:elbow", "v:elbow"]   # name: position and velocity
+
+Contacts. A ``[[contacts]]`` entry holds its frame at the place the scene's posture puts it
+(``operating_point.q`` applied to the reference posture, before any assembly): that world
+placement is the contact's anchor, fixed for the scene (``pinlin.linearize(scene, q=...)``
+anchors the contacts where that configuration puts them instead). Assembly then closes the
+loops with every contact held at its anchor. A ``point`` contact keeps the frame's origin (a
+foot's tip; its force is reported, and a warning is given when it pulls the robot towards the
+ground), a ``weld`` the whole frame (a flat foot; force and torque about the frame's origin).
+Contacts on a floating base make a standing robot: at rest the inputs and contact forces must
+balance gravity, ``[S, Phi_q^T] [u0; lam] = g(q0)``. With two feet or four legs that split is
+not unique; pinlin then reports the least-norm [u0; lam] and says so in the operating point's
+notes. ``solve = "forces"`` instead holds the inputs at ``u`` (zero for joints not named) and
+solves the contact (and loop) forces alone, which are then unique: a user's own split. If the
+inputs given cannot balance the robot (the base's own six equations, or an unactuated joint),
+pinlin refuses with the force left over. The forces come back as
+``OperatingPoint.contact_forces``: contact name -> (force [N], torque [N*m]), in the world
+frame, applied by the world to the robot.
 
 Ranges. Every number is an SI value and must be finite; magnitudes are bounded so that nothing
 a scene asks for can overflow float64 anywhere downstream (the reasoning behind each limit is in
@@ -67,117 +90,48 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ArgumentError, SceneError, UnknownRobotError
-from .fields import (
+from .fields import (  # noqa: F401  (RATE_LIMIT: importable from here)
     COEFFICIENT_LIMIT,
     POSITION_LIMIT,
     RATE_LIMIT,
     check_keys,
     clean,
-    direction,
     flag,
     joint_position,
     joint_table,
     joint_values,
     name_list,
-    number,
-    number_list,
     path_argument,
     read_toml,
     show,
     string,
     table,
 )
+from .scene_closures import (  # noqa: F401  (LOOP_TYPES, CONTACT_TYPES: importable from here)
+    CONTACT_TYPES,
+    LOOP_TYPES,
+    Contact,
+    Loop,
+    parse_contacts,
+    parse_loops,
+)
+from .scene_effects import (  # noqa: F401  (Rotation, STANDARD_GRAVITY: importable from here)
+    STANDARD_GRAVITY,
+    Effects,
+    JointValues,
+    Rotation,
+    Spring,
+    parse_effects,
+)
 
 # The range limits (POSITION_LIMIT, ...) are defined in pinlin.fields and importable from here.
 # The helpers' old private names here, for code that imported them before pinlin.fields existed:
 _clean, _show = clean, show
 
-STANDARD_GRAVITY = (0.0, 0.0, -9.81)
-
 _TOP_KEYS = ("name", "urdf", "robot", "base", "effects", "operating_point", "inputs", "outputs",
-             "loops")
-_EFFECT_KEYS = ("gravity", "armature", "damping", "springs", "rotation", "mimic")
+             "loops", "contacts")
 _OP_KEYS = ("q", "v", "independent", "solve", "u", "allow_non_equilibrium")
-_SOLVE_MODES = ("inputs", "positions", "none")
-_LOOP_KEYS = ("name", "type", "frame1", "frame2")
-LOOP_TYPES = ("point", "weld")
-
-
-@dataclass(frozen=True)
-class Spring:
-    """A linear joint spring: torque = -stiffness * (q - rest).
-
-    Attributes:
-        stiffness: [N*m/rad] for rotational joints, [N/m] for prismatic ones; >= 0.
-        rest: Rest position [rad] or [m].
-    """
-
-    stiffness: float
-    rest: float = 0.0
-
-
-JointValues = Mapping[str, float | tuple[float, ...]]
-
-
-@dataclass(frozen=True)
-class Rotation:
-    """Steady rotation of the whole scene about a world axis through the origin.
-
-    Attributes:
-        axis: Unit axis in the world frame.
-        rate: Angular rate [rad/s] (sign by the right-hand rule about ``axis``).
-    """
-
-    axis: tuple[float, float, float]
-    rate: float
-
-
-@dataclass(frozen=True)
-class Loop:
-    """A loop closure between two frames of the URDF tree.
-
-    Attributes:
-        name: Loop name (used in constraint-force and note names).
-        type: ``"point"``: the frame origins coincide (3 rows); ``"weld"``: the frames coincide
-            (origins and orientations, 6 rows).
-        frame1, frame2: URDF frame (link) names.
-    """
-
-    name: str
-    type: str
-    frame1: str
-    frame2: str
-
-
-@dataclass(frozen=True)
-class Effects:
-    """The physical effects a scene calls for; anything absent is not simulated.
-
-    Attributes:
-        gravity: Gravity vector in the world frame [m/s^2], or None for no gravity.
-        armature: Rotor inertia added to the diagonal of M, per joint [kg*m^2] or [kg]; True takes
-            it from the robot's SRDF rotor parameters; None: no armature.
-        damping: Viscous joint damping per joint [N*m*s/rad] or [N*s/m]; True takes the URDF
-            ``<dynamics damping>`` values; None: no damping.
-        springs: Joint springs by joint name; None: no springs.
-        rotation: Steady rotation of the scene, or None.
-        mimic: Whether the URDF's ``<mimic>`` tags couple their joints (holonomic constraints
-            q_mimic = multiplier * q_joint + offset); False: mimic joints move freely.
-    """
-
-    gravity: tuple[float, float, float] | None = None
-    armature: JointValues | bool | None = None
-    damping: JointValues | bool | None = None
-    springs: Mapping[str, Spring] | None = None
-    rotation: Rotation | None = None
-    mimic: bool = False
-
-    def __post_init__(self) -> None:
-        flag(None, "effects.mimic", self.mimic)
-
-    def in_play(self) -> list[str]:
-        """Names of the effects present, in a fixed order."""
-        return [k for k in _EFFECT_KEYS if getattr(self, k) not in (None, False, {})]
+_SOLVE_MODES = ("inputs", "positions", "none", "forces")
 
 
 @dataclass(frozen=True)
@@ -189,14 +143,17 @@ class OperatingPointSpec:
             angle), a list of the joint's raw configuration values, or for a free-flyer or
             spherical joint a table ``{position = [x, y, z], rpy = [r, p, y]}`` /
             ``{quaternion = [x, y, z, w]}``. Joints not named keep the reference posture.
-        independent: With loops or mimic couplings: the joints held at their ``q`` values
-            during assembly, used as independent coordinates z; empty: pinlin chooses.
-        solve: ``"inputs"``: find the inputs u0 that hold q0 at rest; ``"positions"``: find the
-            passive equilibrium q0 (``q`` is the starting guess) for the inputs ``u``;
-            ``"none"``: take the state (q0, v0, u0) as given, moving or not (the model is
-            affine, x' = f0 + A x + B u, with the acceleration a0 reported).
-        u: Input values by joint name for ``solve = "positions"`` or ``"none"`` [N*m or N];
-            others zero.
+        independent: With loops, contacts or mimic couplings: the joints held at their ``q``
+            values during assembly, used as independent coordinates z; empty: pinlin chooses.
+        solve: ``"inputs"``: find the inputs u0 that hold q0 at rest (with the constraint
+            forces; the least-norm [u0; lam] when they are not unique); ``"positions"``: find
+            the passive equilibrium q0 (``q`` is the starting guess) for the inputs ``u``;
+            ``"forces"``: hold the inputs at ``u`` and solve the constraint (contact, loop)
+            forces that keep q0 at rest; ``"none"``: take the state (q0, v0, u0) as given,
+            moving or not (the model is affine, x' = f0 + A x + B u, with the acceleration a0
+            reported).
+        u: Input values by joint name for ``solve = "positions"``, ``"forces"`` or ``"none"``
+            [N*m or N]; others zero.
         v: Joint velocities by joint name for ``solve = "none"``: a number for a 1-DoF joint
             [rad/s or m/s], a list of the joint's nv values (a free flyer: [vx, vy, vz, wx,
             wy, wz] in the base frame); others zero.
@@ -246,6 +203,7 @@ class Scene:
         inputs: ``"all"`` (every joint except a floating base) or the actuated joint names.
         outputs: Requested outputs, or None for the full state.
         loops: Loop closures.
+        contacts: Frames held at their place in the world at the scene's posture.
         source: Scene file the scene came from, for error messages; None if built in Python.
     """
 
@@ -259,6 +217,7 @@ class Scene:
     outputs: Outputs | None = None
     loops: tuple[Loop, ...] = ()
     source: Path | None = None
+    contacts: tuple[Contact, ...] = ()
 
     # ----------------------------------------------------------------------------------------
     @classmethod
@@ -382,82 +341,6 @@ def bundled_scenes() -> dict[str, Path]:
     return {p.stem: p for p in sorted(bundled_folder().glob("*.toml"))}
 
 
-def _per_joint(src, fld: str, x: Any, unit: str) -> JointValues | bool:
-    """A per-joint coefficient table (>= 0) or True (take the values from the robot's files)."""
-    if x is True:
-        return True
-    return joint_values(src, fld, x, unit=unit, minimum=0.0, limit=COEFFICIENT_LIMIT)
-
-
-def _parse_effects(src, x: Any) -> Effects:
-    tbl = table(src, "effects", x)
-    check_keys(src, "effects", tbl, _EFFECT_KEYS)
-    gravity = None
-    if "gravity" in tbl:
-        g = tbl["gravity"]
-        if g is True:
-            gravity = STANDARD_GRAVITY
-        elif g is not False:
-            gravity = number_list(src, "effects.gravity", g, length=3, unit=" [m/s^2]",
-                                  limit=COEFFICIENT_LIMIT)
-    armature = damping = None
-    if "armature" in tbl and tbl["armature"] is not False:
-        armature = _per_joint(src, "effects.armature", tbl["armature"], " [kg*m^2 or kg]")
-    if "damping" in tbl and tbl["damping"] is not False:
-        damping = _per_joint(src, "effects.damping", tbl["damping"], " [N*m*s/rad or N*s/m]")
-    springs = None
-    if "springs" in tbl:
-        springs = {}
-        for joint, spec in joint_table(src, "effects.springs", tbl["springs"]).items():
-            f = f"effects.springs.{joint}"
-            spec = table(src, f, spec)
-            check_keys(src, f, spec, ("stiffness", "rest"))
-            if "stiffness" not in spec:
-                raise SceneError(src, f"{f}.stiffness", "missing; expected a number >= 0")
-            springs[joint] = Spring(
-                number(src, f"{f}.stiffness", spec["stiffness"], minimum=0.0,
-                       unit=" [N*m/rad or N/m]", limit=COEFFICIENT_LIMIT),
-                number(src, f"{f}.rest", spec.get("rest", 0.0), unit=" [rad or m]",
-                       limit=POSITION_LIMIT),
-            )
-    rotation = None
-    if "rotation" in tbl and tbl["rotation"] is not False:
-        f = "effects.rotation"
-        spec = table(src, f, tbl["rotation"])
-        check_keys(src, f, spec, ("axis", "rate"))
-        for key in ("axis", "rate"):
-            if key not in spec:
-                raise SceneError(src, f"{f}.{key}", "missing")
-        rotation = Rotation(direction(src, f"{f}.axis", spec["axis"]),
-                            number(src, f"{f}.rate", spec["rate"], unit=" [rad/s]",
-                                   limit=RATE_LIMIT))
-    mimic = flag(src, "effects.mimic", tbl.get("mimic", False))
-    return Effects(gravity, armature, damping, springs, rotation, mimic)
-
-
-def _parse_loops(src, x: Any) -> tuple[Loop, ...]:
-    if not isinstance(x, list | tuple):
-        raise SceneError(src, "loops", "expected an array of tables ([[loops]])")
-    loops: list[Loop] = []
-    for i, entry in enumerate(x):
-        fld = f"loops[{i}]"
-        spec = table(src, fld, entry)
-        check_keys(src, fld, spec, _LOOP_KEYS)
-        for key in ("frame1", "frame2"):
-            if key not in spec:
-                raise SceneError(src, f"{fld}.{key}", "missing; expected a frame (link) name")
-        name = string(src, f"{fld}.name", spec.get("name", f"loop{i}"))
-        if any(lp.name == name for lp in loops):
-            raise SceneError(src, f"{fld}.name", f"loop name '{name}' is used twice")
-        f1 = string(src, f"{fld}.frame1", spec["frame1"])
-        f2 = string(src, f"{fld}.frame2", spec["frame2"])
-        if f1 == f2:
-            raise SceneError(src, f"{fld}.frame2", "must differ from frame1")
-        loops.append(Loop(name, string(src, f"{fld}.type", spec.get("type", "point"),
-                                       LOOP_TYPES), f1, f2))
-    return tuple(loops)
-
-
 def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     tbl = table(src, "operating_point", x)
     check_keys(src, "operating_point", tbl, _OP_KEYS)
@@ -469,8 +352,9 @@ def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
                      limit=COEFFICIENT_LIMIT)
     if u and solve == "inputs":
         raise SceneError(src, "operating_point.u", "inputs are given only with "
-                                                   "solve = \"positions\" or \"none\" (with "
-                                                   "\"inputs\" pinlin finds them)")
+                                                   "solve = \"positions\", \"forces\" or "
+                                                   "\"none\" (with \"inputs\" pinlin finds "
+                                                   "them)")
     v = joint_values(src, "operating_point.v", tbl.get("v", {}), unit=" [rad/s or m/s]",
                      limit=COEFFICIENT_LIMIT)
     if v and solve != "none":
@@ -508,7 +392,7 @@ def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:
     base = None
     if "base" in data:
         base = string(src, "base", data["base"], ("fixed", "free"))
-    effects = _parse_effects(src, data.get("effects", {}))
+    effects = parse_effects(src, data.get("effects", {}))
     op = _parse_operating_point(src, data.get("operating_point", {}))
     inputs: str | tuple[str, ...] = "all"
     if "inputs" in data:
@@ -528,6 +412,8 @@ def _parse_scene(data: Mapping[str, Any], src: Path | None) -> Scene:
         if not outputs.frames and not outputs.joints:
             raise SceneError(src, "outputs", "is empty; name frames or joints, or leave the "
                                              "table out to output the whole state")
-    loops = _parse_loops(src, data["loops"]) if "loops" in data else ()
+    loops = parse_loops(src, data["loops"]) if "loops" in data else ()
+    contacts = parse_contacts(src, data["contacts"], loops) if "contacts" in data else ()
     return Scene(name=name, urdf=urdf, robot=robot, base=base, effects=effects,
-                 operating_point=op, inputs=inputs, outputs=outputs, loops=loops, source=src)
+                 operating_point=op, inputs=inputs, outputs=outputs, loops=loops, source=src,
+                 contacts=contacts)

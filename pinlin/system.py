@@ -14,6 +14,7 @@ nv). A floating base is Pinocchio's free-flyer joint ``root_joint``: configurati
 
 from __future__ import annotations
 
+import copy
 import functools
 import threading
 from pathlib import Path
@@ -23,7 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from .arrays import complement, read_only
-from .conditioning import refuse_condition, scaled_condition, singular_to_working_precision
+from .conditioning import refuse_condition, singular_to_working_precision
 from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configuration: re-exported)
     FREE_FLYER,
     SPHERICAL,
@@ -38,7 +39,7 @@ from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configu
     output_map,
     spring_vectors,
 )
-from .exceptions import ModelError, SceneError, UnknownNameError
+from .exceptions import SceneError, UnknownNameError
 from .robots import load_robot
 from .scene import Scene
 from .urdf_io import load_urdf
@@ -68,6 +69,9 @@ class System:
         state_names: ``q:<coordinate>`` then ``v:<coordinate>``.
         outputs: Output map, or None when the output is the full state.
         base_joint: Name of the free-flyer joint, or None for a fixed base.
+        constraints: The scene's loops, contacts (anchored at the scene's posture, see
+            :meth:`anchored_at`) and mimic couplings
+            (:class:`~pinlin.constraints.ConstraintSet`).
     """
 
     def __init__(self, scene: Scene, model: pin.Model, q_ref: np.ndarray) -> None:
@@ -355,61 +359,30 @@ class System:
         return Minv
 
     def _raise_singular(self, q: np.ndarray, liftable: bool) -> NoReturn:
-        """A :class:`ModelError` that says why M(q) is singular: the coordinate whose row of M
-        is zero, or else the motion (eigenvector of M's smallest eigenvalue) that meets no
-        inertia and the bodies it moves; ``liftable``: M^-1 is finite, so
-        ``allow_ill_conditioned`` would give a model (the message offers it)."""
-        M = self.mass_matrix(q)
-        where = f"scene '{self.scene.name}': the mass matrix is singular at q0: "
-        zero = np.flatnonzero(~(np.abs(M).max(axis=1) > 0.0))  # NaN counts as zero
-        if zero.size:
-            bad = int(zero[0])
-            more = ""
-            if zero.size > 1:
-                others = [self.coordinate_names[i] for i in zero[1:4]]
-                k = zero.size - 1
-                more = (f", nor {'does' if k == 1 else 'do'} {k} other coordinate"
-                        f"{'' if k == 1 else 's'} ({', '.join(others)}"
-                        f"{', ...' if zero.size > 4 else ''})")
-            raise ModelError(f"{where}coordinate '{self.coordinate_names[bad]}' carries no "
-                             f"inertia (row {bad} of M is zero){more}; give the bodies it moves "
-                             "mass or armature")
-        scaled = scaled_condition(M)
-        condition = f"{scaled:.1e}" if np.isfinite(scaled) else "infinite"
-        precision = "singular to working precision" if liftable else "singular"
-        w, V = np.linalg.eigh(M)
-        mode = V[:, 0] / V[np.argmax(np.abs(V[:, 0])), 0]
-        order = np.argsort(-np.abs(mode), kind="stable")
-        motion = ", ".join(f"{self.coordinate_names[k]} {mode[k]:+.3g}" for k in order[:4]
-                           if abs(mode[k]) >= 0.01)
-        bodies, still, rotational = _moved_bodies(self, q, mode)
-        one = len(bodies) == 1
-        if bodies and still:
-            have = (f"{'it has' if one else 'they have'} no rotational inertia" if rotational == 0
-                    else f"{'its' if one else 'their'} rotational inertia is at most "
-                         f"{rotational:.1e} kg*m^2")
-            why = (f"it turns {_join(bodies)} about axes through "
-                   f"{'its centre' if one else 'their centres'} of mass, and {have} about "
-                   f"{'it' if one else 'them'}")
-            fix = "give them rotational inertia (or the joints armature)"
-        else:
-            why = (f"it moves {_join(bodies) or 'no body'}, whose inertia along it is "
-                   f"{max(w[0], 0.0) / w[-1]:.0e} of the rest")
-            fix = "give the bodies it moves inertia (or the joints armature)"
-        lift = (", or pass allow_ill_conditioned=True (--allow-ill-conditioned on the command "
-                "line) to linearize anyway") if liftable else ""
-        raise ModelError(
-            f"scene '{self.scene.name}': the mass matrix is {precision} at q0 (scaled to unit "
-            f"diagonal, its condition number is {condition}, at or above 0.1/(n eps) = "
-            f"{refuse_condition(self.nv):.1e}: not one digit of its inverse is reliable): the "
-            f"motion [{motion}] meets a generalized inertia of {w[0]:.1e} against {w[-1]:.3g} "
-            f"for the heaviest motion: {why}; {fix}{lift}")
+        """A :class:`ModelError` that says why M(q) is singular
+        (:func:`pinlin.mass_diagnosis.raise_singular`)."""
+        from .mass_diagnosis import raise_singular
+
+        raise_singular(self, q, liftable)
 
     def spring_torque(self, q: np.ndarray) -> np.ndarray:
         """Generalized spring force at configuration ``q`` [N*m or N]."""
         if not self.has_springs:
             return np.zeros(self.nv)
         return -self.stiffness * pin.difference(self.model, self.q_rest, q)
+
+    def anchored_at(self, q: np.ndarray) -> System:
+        """This system with its contacts anchored where configuration ``q`` (nq) puts their
+        frames, instead of at the scene's posture; itself when the scene has no contacts.
+
+        The copy shares the Pinocchio model, data and every other attribute (it is as
+        thread-safe as this system); only :attr:`constraints` differs.
+        """
+        if not self.constraints.contacts:
+            return self
+        other = copy.copy(self)
+        other.constraints = self.constraints.anchored_at(other, q)
+        return other
 
     # ----------------------------------------------------------------------------------------
     def _constraints(self):
@@ -446,43 +419,6 @@ def _robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:
                                     loader.ref_posture)
                  if rm.srdf_path is not None else pin.neutral(model))
     return model, np.asarray(q_ref, float)
-
-
-def _moved_bodies(system: System, q: np.ndarray, mode: np.ndarray
-                  ) -> tuple[list[str], bool, float]:
-    """The bodies with mass that velocity ``mode`` (size nv) moves at q, as "'name' (mass kg)",
-    heaviest first; whether each turns about its own centre of mass (its centre's speed below
-    1e-6 of the fastest body's spatial velocity); and the largest rotational inertia about the
-    axis it turns about [kg*m^2]."""
-    model = system.model
-    data = pin.Data(model)
-    pin.forwardKinematics(model, data, q, mode)
-    body = {}
-    for frame in model.frames:
-        if frame.type == pin.FrameType.BODY:
-            body.setdefault(frame.parentJoint, frame.name)
-    speeds = [np.linalg.norm(data.v[j].vector) for j in range(1, model.njoints)]
-    fast = max(speeds, default=0.0)
-    moved: list[tuple[float, str]] = []
-    still, rotational = True, 0.0
-    for j, speed in enumerate(speeds, start=1):
-        inertia = model.inertias[j]
-        if speed <= 1e-6 * fast or inertia.mass <= 0.0:
-            continue
-        w, v = data.v[j].angular, data.v[j].linear
-        v_com = v + np.cross(w, inertia.lever)
-        still &= bool(np.linalg.norm(v_com) <= 1e-6 * fast)
-        if w @ w > 0.0:
-            rotational = max(rotational, float(w @ inertia.inertia @ w / (w @ w)))
-        moved.append((inertia.mass, f"'{body.get(j, model.names[j])}' ({inertia.mass:.3g} kg)"))
-    moved.sort(key=lambda item: -item[0])
-    return [name for _, name in moved], still, rotational
-
-
-def _join(items: list[str]) -> str:
-    """"a", "a and b", "a, b and c"."""
-    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1] \
-        if items else ""
 
 
 def _as_slice(index: np.ndarray) -> slice | np.ndarray:

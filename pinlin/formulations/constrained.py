@@ -2,7 +2,13 @@
 
 All start from the second-order terms of H at the operating point (see ``derivatives``): M, C,
 K (K includes the geometric stiffness -lam^T Phi_qq of the constraint forces) and the
-independent constraint rows G = Phi_q.
+independent constraint rows G = Phi_q (loops, contacts with the world, mimic couplings).
+Everything is in the tangent space, a floating base's six coordinates included: a standing
+robot is a constrained system like any other (its K keeps the exact, non-symmetric derivative
+of the contact forces on the base's Lie-group block, see :mod:`pinlin.constraints`). With
+contacts the model also reports each contact limb's conditioning
+(:func:`pinlin.contacts.limb_conditions`, ``info["condition"]["contact_limbs"]``) and warns at
+a singular limb (a straight knee).
 
 - **Independent coordinates (9.1.1).** q' = R z' with G R = 0. At a static or steady (relative)
   equilibrium, z' = z'' = 0, so every term of eqs. 9.8-9.11 that carries z' or z'' vanishes and
@@ -34,6 +40,7 @@ import scipy.linalg as sla
 
 from ..assembly import projection
 from ..conditioning import AccuracyWarning, warn_if_ill_conditioned
+from ..contacts import limb_conditions, warn_singular_limbs
 from ..derivatives import (
     SecondOrderTerms,
     error_estimate,
@@ -54,6 +61,8 @@ def first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, Bu: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """A = [[0, I], [-M^-1 K, -M^-1 C]], B = [[0], [M^-1 Bu]] with one Cholesky factor of M."""
     n = M.shape[0]
+    if n == 0:  # nothing moves (a welded body): A is 0 x 0, B has no rows
+        return np.zeros((0, 0)), np.zeros((0, Bu.shape[1]))
     try:
         factor = sla.cho_factor(M)
     except np.linalg.LinAlgError:
@@ -133,10 +142,12 @@ def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, ba
     warn_if_ill_conditioned("dependent-coordinate block of the loop Jacobian (near a singular "
                             "position)", cp.partition.condition, system.scene.name, 1e6,
                             stacklevel=5)
+    limbs = limb_conditions(system, op.q)
+    warn_singular_limbs(system, limbs, stacklevel=5)
     info = {
         "formulation": formulation,
         "derivatives": backend,
-        "effects": system.scene.effects.in_play() + (["loops"] if system.scene.loops else []),
+        "effects": constrained_effects(system),
         "velocity_terms": True,
         "base": "free" if system.base_joint else "fixed",
         "notes": list(op.notes),
@@ -145,8 +156,17 @@ def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, ba
         "dropped_rows": list(cp.partition.dropped),
         "condition": {"constraint_jacobian": cp.partition.condition},
     }
+    if limbs:
+        info["condition"]["contact_limbs"] = limbs
     info.update(extra)
     return info
+
+
+def constrained_effects(system) -> list[str]:
+    """The scene's effects in play, then ``loops`` and ``contacts`` where it has them."""
+    scene = system.scene
+    return (scene.effects.in_play() + (["loops"] if scene.loops else [])
+            + (["contacts"] if scene.contacts else []))
 
 
 def _terms(system, op, derivatives, step, estimate_error=True):

@@ -45,6 +45,7 @@ from ..equilibrium import ConstrainedPoint
 from ..exceptions import ModelError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint, residual_tolerance
+from .constrained import constrained_effects
 from .independent import output_matrices
 
 #: Step of the five-point differences of gamma(q) [rad or m].
@@ -154,7 +155,7 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
         Cout = np.hstack([Cq @ R + Cv @ W, Cv @ R])
     info = {
         "formulation": "independent", "derivatives": "analytic", "basis": "partitioned",
-        "effects": system.scene.effects.in_play() + (["loops"] if system.scene.loops else []),
+        "effects": constrained_effects(system),
         "velocity_terms": True, "base": "free" if system.base_joint else "fixed",
         "notes": list(op.notes), "independent": coords,
         "constraint_rows": [cons.row_names[i] for i in rows],
@@ -249,11 +250,13 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
                          "basis or in the penalty formulation; the canonical formulation and "
                          "the orthonormal basis are not supported there yet")
     if system.base_joint is not None:
-        raise ModelError(f"scene '{system.scene.name}': loops on a floating-base robot are not "
-                         "supported by this version of pinlin")
+        raise ModelError(f"scene '{system.scene.name}': a floating-base robot with loops or "
+                         "contacts is linearized at rest (standing); at a moving state it is "
+                         "not supported yet")
     if system.constraints.has_welds:
-        raise ModelError(f"scene '{system.scene.name}': weld loops at a moving state are not "
-                         "supported yet (point loops and mimic couplings are)")
+        raise ModelError(f"scene '{system.scene.name}': weld loops and contacts at a moving "
+                         "state are not supported yet (point loops and contacts and mimic "
+                         "couplings are)")
 
 
 __all__ = ["linearize_moving", "linearize_moving_penalty", "moving_point",
