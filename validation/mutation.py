@@ -64,7 +64,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    names = {k: list(v) for k, v in names.items()}",
         "saved model files silently drop the constraint Jacobian G"),
     "hessian_unsymmetrized": (
-        "pinlin/constraints.py", "        sym = 0.5 * (out + out.T)\n", "        sym = out.T.copy()\n",
+        "pinlin/constraints.py", "        sym = 0.5 * (out + out.T)\n",
+        "        sym = out.T.copy()\n",
         "loop geometric stiffness without its symmetric part (right only for planar loops)"),
     "hessian_base_symmetrized": (
         "pinlin/constraints.py", "            sym[block, block] = out.T[block, block]",
