@@ -10,6 +10,7 @@ Typical use::
 
 from . import graph
 from .conditioning import AccuracyWarning
+from .contacts import ContactWarning
 from .exceptions import (
     ArgumentError,
     AssemblyError,
@@ -26,11 +27,13 @@ from .exceptions import (
     UrdfError,
 )
 from .frequency import FrequencyResponse, bode, frequency_response
+from .html_report import write_html_report
 from .linear_model import LinearModel
 from .linearization import linearize, operating_point
 from .modal import ModalAnalysis, modal
 from .modal_coordinates import ModalCoordinates
 from .modal_energy import ModalEnergy
+from .mode_pictures import animate_modes, plot_modes
 from .operating_point import OperatingPoint
 from .options import Analytic, Canonical, FiniteDifferences, Independent, Penalty
 from .resources import set_memory_limit
@@ -38,6 +41,7 @@ from .response import Response, response
 from .scene import Effects, Scene, Spring
 from .signals import Signal, harmonic, impulse, step
 from .simulation import Simulation, simulate
+from .stick_figure import ModeMotion, Skeleton, StickFigure, mode_motion
 from .system import System
 from .trajectory import TrajectoryModel, linearize_trajectory
 from .trajectory_files import trajectory_columns
@@ -51,6 +55,7 @@ __all__ = [
     "ArgumentError",
     "AssemblyError",
     "Canonical",
+    "ContactWarning",
     "Effects",
     "EquilibriumError",
     "FiniteDifferences",
@@ -60,6 +65,7 @@ __all__ = [
     "ModalAnalysis",
     "ModalCoordinates",
     "ModalEnergy",
+    "ModeMotion",
     "ModelError",
     "ModelFileError",
     "OperatingPoint",
@@ -73,7 +79,9 @@ __all__ = [
     "ShapeError",
     "Signal",
     "Simulation",
+    "Skeleton",
     "Spring",
+    "StickFigure",
     "System",
     "TrajectoryModel",
     "UnknownNameError",
@@ -81,6 +89,7 @@ __all__ = [
     "UrdfError",
     "Validity",
     "__version__",
+    "animate_modes",
     "bode",
     "frequency_response",
     "graph",
@@ -89,11 +98,14 @@ __all__ = [
     "linearize",
     "linearize_trajectory",
     "modal",
+    "mode_motion",
     "operating_point",
+    "plot_modes",
     "response",
     "set_memory_limit",
     "simulate",
     "step",
     "trajectory_columns",
     "validity",
+    "write_html_report",
 ]

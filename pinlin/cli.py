@@ -28,6 +28,7 @@ from .cli_format import (
     print_operating_point,
 )
 from .cli_motion import add_commands
+from .cli_pictures import add_commands as add_picture_commands
 from .exceptions import ArgumentError, ModelFileError, PinlinError
 
 if TYPE_CHECKING:
@@ -325,6 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "excess states instead of combining them)")
     gra.set_defaults(func=_cmd_graph)
     motion = add_commands(sub, BACKENDS)
+    add_picture_commands(sub)  # modes, report (each with its own --memory-limit)
     for command in (lin, ben, val, exp, *motion):
         command.add_argument("--memory-limit", metavar="SIZE", default=None,
                              help="refuse a model whose estimated memory exceeds SIZE: bytes, "
@@ -339,6 +341,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pinlin`` console script; returns the exit status."""
     with warnings.catch_warnings():
         warnings.showwarning = _show_warning
+        # Each run shows its warnings once each, whatever ran earlier in this process (a
+        # fresh filter resets the "already shown" registries).
+        warnings.simplefilter("default")
         return _main(argv)
 
 

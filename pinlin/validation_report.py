@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import platform
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -23,14 +24,33 @@ INDEX_NAME = "README.md"
 _INDEX_ROW = re.compile(r"^\| \[(?P<name>[^\]]+)\]\((?P=name)\.md\) \| (?P<status>[^|]*?) \|")
 
 
+#: Modes drawn beside the eigenvalue plot, and the resolution of their picture [dpi].
+MODE_PICTURE_COUNT = 3
+MODE_PICTURE_DPI = 90
+
+
 def picture_name(name: str) -> str:
     """File name of the rendered picture of a system's MuJoCo scene."""
     return f"{name}_mujoco.png"
 
 
-def write_report(res, folder: Path) -> None:
-    """``<name>.md``, ``<name>.png`` (both eigenvalue sets in the complex plane) and, when the
-    validation rendered one, ``<name>_mujoco.png``, each written atomically.
+def modes_picture_name(name: str) -> str:
+    """File name of the mode-shape picture of a system's first modes."""
+    return f"{name}_modes.png"
+
+
+def write_report(res, folder: Path, scene=None) -> None:
+    """``<name>.md``, ``<name>.png`` (both eigenvalue sets in the complex plane),
+    ``<name>_modes.png`` (stick figures of the first :data:`MODE_PICTURE_COUNT` modes,
+    :mod:`pinlin.mode_pictures`) and, when the validation rendered one, ``<name>_mujoco.png``,
+    each written atomically.
+
+    Args:
+        res: The :class:`~pinlin.validate.Validation`.
+        folder: The report folder.
+        scene: The scene validated; default: ``res.name`` resolved as ``pinlin validate``
+            resolves a name (:func:`pinlin.bench.check_scene`). Without a scene (a name that
+            does not resolve) the report has no mode picture and says why.
 
     Raises:
         ModelFileError: a file cannot be written (it is left as it was).
@@ -97,7 +117,22 @@ def write_report(res, folder: Path) -> None:
     for k, (a, b, c, e, kind, tol) in enumerate(res.table, start=1):
         lines.append(f"| {k} | {a.real:+.9g} {a.imag:+.9g}j | {b.real:+.9g} {b.imag:+.9g}j | "
                      f"{e:.1e} | {tol:.1e} | {c.real:+.7g} {c.imag:+.7g}j | {kind} |")
-    lines += ["", f"![eigenvalues]({res.name}.png)", ""]
+    modes_png, why = _mode_picture(res, scene)
+    if modes_png is not None and _ours_or_absent(folder / modes_picture_name(res.name)):
+        write_bytes_atomic(folder / modes_picture_name(res.name), modes_png)
+        how = (f" `pinlin modes {res.name} --plot modes.png` draws the first four."
+               if why == "command" else why)
+        lines += ["", f"![eigenvalues]({res.name}.png) "
+                      f"![first modes]({modes_picture_name(res.name)})", "",
+                  "The second picture shows the first modes as stick figures (joint origins "
+                  "and frames from Pinocchio's forward kinematics; grey at q0, coloured at q0 "
+                  "displaced along the mode; see pinlin/stick_figure.py), each in its plane of "
+                  f"largest displacement.{how}", ""]
+    else:
+        if modes_png is not None:
+            why = (f"{modes_picture_name(res.name)} exists and was not written by pinlin; it "
+                   "is left alone")
+        lines += ["", f"![eigenvalues]({res.name}.png)", "", f"No mode picture: {why}.", ""]
     if res.picture is not None:
         write_bytes_atomic(folder / picture_name(res.name), res.picture)
         lines += ["The MuJoCo scene at the operating point (MuJoCo's offscreen renderer; "
@@ -107,6 +142,48 @@ def write_report(res, folder: Path) -> None:
         lines += [f"No picture of the MuJoCo scene: {res.picture_note}", ""]
     _plot(res, folder / f"{res.name}.png")
     write_text_atomic(folder / f"{res.name}.md", "\n".join(lines) + "\n")
+
+
+def _ours_or_absent(path: Path) -> bool:
+    from .exceptions import ModelFileError
+    from .files import check_ours
+
+    try:
+        check_ours(path, PNG_MARKER)
+    except ModelFileError:
+        return False
+    return True
+
+
+def _mode_picture(res, scene) -> tuple[bytes | None, str]:
+    """(PNG of the first modes, how to reproduce it) or (None, why not): how is "command"
+    where ``pinlin modes NAME`` draws the same scene, else a sentence."""
+    from .exceptions import PinlinError
+    from .linearization import linearize
+    from .modal import modal
+    from .mode_pictures import default_modes, picture
+
+    how = ""
+    if scene is None:
+        from .bench import check_scene
+
+        try:
+            scene, kind = check_scene(res.name)
+        except PinlinError:
+            return None, (f"the report name '{res.name}' is no bundled scene or robot name, "
+                          "and the validation did not pass its scene on")
+        how = (" The model drawn is the validated one: the free fall at rest from a rotated "
+               "base pose." if kind == "floating base" else "command")
+    try:
+        with warnings.catch_warnings():  # the validation has reported them already
+            warnings.simplefilter("ignore")
+            modes = modal(linearize(scene))
+        chosen = default_modes(modes, MODE_PICTURE_COUNT)
+        if not chosen:
+            return None, "the model has no mode to draw"
+        return picture(scene, modes, chosen, dpi=MODE_PICTURE_DPI, palette=True), how
+    except PinlinError as exc:
+        return None, " ".join(str(exc).split()).rstrip(".")
 
 
 def _names(links: list[str]) -> str:

@@ -1,0 +1,121 @@
+"""Command-line commands that draw modes: ``pinlin modes`` (the mode table, a PNG of the mode
+shapes, an animated GIF) and ``pinlin report`` (one self-contained HTML file). Parsing and
+printing only; the work is in :mod:`pinlin.mode_pictures` and :mod:`pinlin.html_report`."""
+
+from __future__ import annotations
+
+import argparse
+
+from .cli_format import file_name, plural
+from .exceptions import ArgumentError
+
+
+def _linearize(args: argparse.Namespace):
+    from .linearization import linearize
+    from .modal import modal
+    from .scene import Scene
+
+    scene = Scene.resolve(args.target)
+    model = linearize(scene, allow_non_equilibrium=True if args.allow_non_equilibrium
+                      else None)
+    return scene, model, modal(model)
+
+
+def _chosen(modes, numbers: list[int] | None) -> list[int] | None:
+    """Eigenvalue indices of the mode-table rows ``numbers`` (1 = first row)."""
+    if numbers is None:
+        return None
+    keep = modes.modes()
+    out = []
+    for k in numbers:
+        if not 1 <= k <= len(keep):
+            raise ArgumentError("--mode", f"no mode {k}: the mode table of "
+                                          f"'{modes.model.name}' has rows 1 to {len(keep)}"
+                                if keep else f"no mode {k}: the model has no modes")
+        out.append(keep[k - 1])
+    return out
+
+
+def _cmd_modes(args: argparse.Namespace) -> int:
+    from .cli_format import print_operating_point
+    from .mode_pictures import animate_modes, check_target, plot_modes
+
+    png = check_target(args.plot, ".png", "--plot") if args.plot else None
+    gif = check_target(args.gif, ".gif", "--gif") if args.gif else None
+    if args.amplitude is not None and not (0 < args.amplitude < float("inf")):
+        raise ArgumentError("--amplitude", f"expected an amplitude > 0 [rad or m], got "
+                                           f"{args.amplitude:g}")
+    if args.mode is not None and png is None and gif is None:
+        raise ArgumentError("--mode", "chooses the modes to draw: give --plot FILE.png or "
+                                      "--gif FILE.gif as well")
+    scene, model, modes = _linearize(args)
+    indices = _chosen(modes, args.mode)
+    print_operating_point(model, scene.system)
+    print()
+    print(modes)
+    if png is not None:
+        plot_modes(scene, modes, png, indices, amplitude=args.amplitude)
+        print(f"\nmode picture written to {png}")
+    if gif is not None:
+        animate_modes(scene, modes, gif, indices, amplitude=args.amplitude)
+        print(f"{'' if png else chr(10)}mode animation written to {gif}")
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .html_report import check_report_target, write_html_report
+
+    out = check_report_target(args.output, "--output")
+    if not 1 <= args.max_modes <= 500:
+        raise ArgumentError("--max-modes", f"expected 1 to 500 modes to draw, got "
+                                           f"{args.max_modes}")
+    scene, model, modes = _linearize(args)
+    write_html_report(scene, out, model=model, modes=modes, max_modes=args.max_modes,
+                 include_response=not args.no_response, include_validity=args.validity)
+    print(f"report of '{model.name}' ({plural(len(modes.modes()), 'mode')}) written to {out}; "
+          "open it in a browser (it needs no network)")
+    return 0
+
+
+def add_commands(sub) -> list[argparse.ArgumentParser]:
+    """Add ``modes`` and ``report`` to the subparsers ``sub``; returns them."""
+    scene_help = "scene .toml, .urdf, bundled scene name or example-robot-data robot"
+    mod = sub.add_parser("modes", help="print the mode table and draw the mode shapes (PNG, "
+                                       "animated GIF)")
+    mod.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
+    mod.add_argument("--plot", metavar="FILE.png", type=file_name("--plot"),
+                     help="draw the modes as stick figures at q0 and displaced (one panel "
+                          "per mode)")
+    mod.add_argument("--gif", metavar="FILE.gif", type=file_name("--gif"),
+                     help="animate the modes over one cycle")
+    mod.add_argument("--mode", type=int, nargs="+", metavar="K",
+                     help="rows of the mode table to draw (1 = first row; default: the first "
+                          "four that are not rigid)")
+    mod.add_argument("--amplitude", type=float, default=None,
+                     help="excursion of each shape's largest coordinate [rad or m] (default: "
+                          "a readable one per mode)")
+    mod.add_argument("--allow-non-equilibrium", action="store_true",
+                     help="linearize even if the inputs cannot hold q0 at rest")
+    mod.set_defaults(func=_cmd_modes)
+    rep = sub.add_parser("report", help="write one self-contained HTML report (operating "
+                                        "point, modes, animated mode shapes)")
+    rep.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
+    rep.add_argument("-o", "--output", required=True, metavar="FILE.html",
+                     type=file_name("--output"))
+    rep.add_argument("--max-modes", type=int, default=24,
+                     help="modes that get an animated figure (default 24; the table lists "
+                          "all)")
+    rep.add_argument("--no-response", action="store_true",
+                     help="leave out the free linear response plot")
+    rep.add_argument("--validity", action="store_true",
+                     help="add the validity plots of the first mode (simulates the nonlinear "
+                          "dynamics: slow for large robots)")
+    rep.add_argument("--allow-non-equilibrium", action="store_true",
+                     help="linearize even if the inputs cannot hold q0 at rest")
+    rep.set_defaults(func=_cmd_report)
+    for command in (mod, rep):
+        command.add_argument("--memory-limit", metavar="SIZE", default=None,
+                             help="refuse a model whose estimated memory exceeds SIZE: bytes, "
+                                  "or with suffix K, M, G, T (powers of 1024), e.g. 8G "
+                                  "(default: $PINLIN_MEMORY_LIMIT, else half the memory)")
+    return [mod, rep]
