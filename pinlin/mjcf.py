@@ -253,6 +253,7 @@ def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) ->
             eq.data[:] = 0.0
             eq.data[6] = 1.0     # relative orientation (w, x, y, z): identity
             eq.data[10] = 1.0    # torque scale
+    _add_contacts(spec, system, bodies, solref, solimp)
     from .constraints import read_mimic_tags
 
     if system.scene.effects.mimic:
@@ -262,6 +263,37 @@ def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) ->
             eq.name1, eq.name2 = c.mimic, c.joint
             eq.data[:5] = [c.offset, c.multiplier, 0.0, 0.0, 0.0]
             eq.solref, eq.solimp = solref, solimp
+
+
+def _add_contacts(spec: mujoco.MjSpec, system, bodies: set[str], solref: np.ndarray,
+                  solimp: np.ndarray) -> None:
+    """Each scene contact as an equality with the world, not a MuJoCo contact: a site
+    ``<name>_site1`` on the contact frame's body (at its origin: a URDF link is a MuJoCo body),
+    a site ``<name>_site2`` on the worldbody at the anchor placement
+    (:attr:`pinlin.constraints.AnchoredContact.placement`, quaternion in MuJoCo's (w, x, y, z)
+    order), joined by ``connect`` (point: the two origins coincide) or ``weld`` (the two
+    frames coincide), with the loops' stiff ``solref`` / ``solimp``."""
+    import pinocchio as pin
+
+    for i, contact in enumerate(system.constraints.contacts):
+        if contact.frame not in bodies:
+            raise MujocoError(f"contacts[{i}].frame: '{contact.frame}' is not a URDF link, so "
+                              "MuJoCo has no body for it")
+        site1, site2 = f"{contact.name}_site1", f"{contact.name}_site2"
+        spec.body(contact.frame).add_site(name=site1)
+        xyzw = pin.Quaternion(np.array(contact.rotation)).coeffs()
+        spec.worldbody.add_site(name=site2, pos=np.array(contact.position),
+                                quat=np.array([xyzw[3], xyzw[0], xyzw[1], xyzw[2]]))
+        eq = spec.add_equality()
+        eq.type = (mujoco.mjtEq.mjEQ_CONNECT if contact.type == "point"
+                   else mujoco.mjtEq.mjEQ_WELD)
+        eq.objtype = mujoco.mjtObj.mjOBJ_SITE
+        eq.name, eq.name1, eq.name2 = contact.name, site1, site2
+        eq.solref, eq.solimp = solref, solimp
+        if contact.type == "weld":
+            eq.data[:] = 0.0
+            eq.data[6] = 1.0     # relative orientation (w, x, y, z): identity
+            eq.data[10] = 1.0    # torque scale
 
 
 def set_state(ms: MujocoScene, system, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> None:
