@@ -417,6 +417,93 @@ def test_contact_forces_survive_saving(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
+# MuJoCo: contacts exported as equalities to the world
+
+
+def _mujoco_rows(ms, system, q, tau):
+    """MuJoCo's equality residual, dense constraint Jacobian and bias - applied force at q."""
+    import mujoco
+
+    from pinlin import mjcf
+
+    mjcf.set_state(ms, system, q, np.zeros(system.nv), tau)
+    m, d = ms.model, ms.data
+    mujoco.mj_forward(m, d)
+    jac = np.zeros((d.nefc, m.nv))
+    if mujoco.mj_isSparse(m):
+        mujoco.mju_sparse2dense(jac, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind)
+    else:
+        jac[:] = d.efc_J[:d.nefc * m.nv].reshape(d.nefc, m.nv)
+    return d.efc_pos[:d.nefc].copy(), jac, d.qfrc_bias - d.qfrc_applied
+
+
+@pytest.mark.parametrize("name", ["standing_box", "solo12_standing", "talos_standing"])
+def test_exported_contacts_hold_the_frames_where_pinlin_anchors_them(name):
+    """One connect (point) or weld equality per contact, from a site on the frame's body to a
+    world site at the anchor: at a configuration away from q0 MuJoCo's residual equals
+    pinlin's Phi(q) row by row: the world position difference exactly, a weld's rotation as
+    MuJoCo writes it, the vector part of the error quaternion in the frame's own axes,
+    sin(|r| / 2) R^T r / |r| for pinlin's world r = log3(R1 R2^T) and the anchor's R (both to
+    rounding of O(1) numbers: 1e-12)."""
+    from pinlin import mjcf
+
+    scene = _scene(name)
+    system = scene.system
+    q0 = pinlin.operating_point(scene).q
+    ms = mjcf.build(system, dt=1e-4)
+    contacts = system.constraints.contacts
+    assert ms.model.neq == len(contacts)
+    q = pin.integrate(system.model, q0, 0.1 * np.random.default_rng(7).standard_normal(system.nv))
+    mj, _, _ = _mujoco_rows(ms, system, q, np.zeros(system.nv))
+    phi = system.constraints.residual(q)
+    assert mj.shape == phi.shape and np.abs(phi).max() > 1e-2   # really moved away
+    for contact in contacts:
+        rows = np.array(contact.rows)
+        np.testing.assert_allclose(mj[rows[:3]], phi[rows[:3]], rtol=0, atol=1e-12)
+        if contact.type == "weld":
+            r = phi[rows[3:]]
+            angle = np.linalg.norm(r)
+            local = contact.rotation.T @ r  # = R1^T r: the axis of R1 R2^T is its own image
+            np.testing.assert_allclose(mj[rows[3:]], math.sin(angle / 2) * local / angle,
+                                       rtol=0, atol=1e-12)
+    at_q0, _, _ = _mujoco_rows(ms, system, q0, np.zeros(system.nv))
+    assert np.abs(at_q0).max() <= 1e-12
+
+
+@pytest.mark.parametrize("name", ["standing_box", "solo12_standing", "talos_standing",
+                                  "g1_standing"])
+def test_mujoco_confirms_the_standing_statics(name):
+    """pinlin's u0 holds the robot in MuJoCo's model: some contact forces f balance MuJoCo's
+    own bias force against the applied S u0 through MuJoCo's own constraint Jacobian,
+    J^T f = c(q0) - S u0. The least-squares residual is rounding, bounded by
+    10 m cond(J) eps relative (m rows); the box's single contact carries m g upwards."""
+    from pinlin import mjcf
+
+    scene = _scene(name)
+    system = scene.system
+    op = pinlin.operating_point(scene)
+    ms = mjcf.build(system, dt=1e-4)
+    _, jac, rhs = _mujoco_rows(ms, system, op.q, system.input_matrix @ op.u)
+    f, *_ = np.linalg.lstsq(jac.T, rhs, rcond=None)
+    bound = 10 * jac.shape[0] * np.linalg.cond(jac) * np.finfo(float).eps
+    assert np.abs(jac.T @ f - rhs).max() <= bound * np.abs(rhs).max()
+    if name == "standing_box":
+        np.testing.assert_allclose(f, [0.0, 0.0, MASS * G], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["standing_box", "solo12_standing"])
+def test_standing_scenes_validate_against_mujoco(name):
+    """Eigenvalues against MuJoCo's model with the contacts as stiff equalities to the world
+    (the soft-constraint modes set aside, 2 per contact row)."""
+    from pinlin.validate import validate
+
+    res = validate(_scene(name), name=name)
+    assert res.passed, res.reason
+    rows = _scene(name).system.constraints.size
+    assert len(res.set_aside) == 2 * rows
+
+
+# ---------------------------------------------------------------------------------------------
 # Bad input
 
 BOX_URDF = {"robot__urdf": (URDF_DIR / "standing_box.urdf").read_text()}
