@@ -53,15 +53,21 @@ class Options:
     Attributes:
         derivatives: ``"analytic"``, ``"fd3"`` or ``"fd5"``.
         step: Finite-difference step(s) for fd3/fd5 (see :func:`pinlin.linearize`), or None.
+        frozen: For a mechanism, the partition of the trajectory's point 0
+            (:class:`pinlin.trajectory_loops.FrozenPartition`); None for an open chain.
     """
 
     derivatives: str = "analytic"
     step: float | Mapping[str, float] | None = None
+    #: A mechanism's partition, frozen at point 0 (:mod:`pinlin.trajectory_loops`), or None.
+    frozen: Any = None
 
 
 def batch_path(system: System, options: Options) -> bool:
-    """Whether the batch path applies: analytic derivatives and no steady rotation."""
-    return options.derivatives == "analytic" and system.rotation is None
+    """Whether the batch path applies: an open chain, analytic derivatives and no steady
+    rotation."""
+    return options.derivatives == "analytic" and system.rotation is None \
+        and options.frozen is None
 
 
 @dataclass(frozen=True)
@@ -72,7 +78,13 @@ class Layout:
     (N, n, nu), ``f0`` (N, n) (its second half is the acceleration a), ``bad`` (N,) (1 where
     a point failed the screening of :func:`fill`, for :func:`check`), and where they vary from
     point to point ``C``
-    (N, p, n) (``frames``: frame outputs) and ``y`` (N, p). n = 2 nv.
+    (N, p, n) (``frames``: frame outputs) and ``y`` (N, p). n = 2 nv for an open chain.
+
+    A mechanism (``m`` > 0 constraint rows, :mod:`pinlin.trajectory_loops`) has n = ``nx``
+    = 2 nz states, one more input ``cond`` (N,) (the condition of Phi_d at each point) and
+    the results ``vp`` (N, nv) (projected velocities), ``acc`` (N, nv) (accelerations),
+    ``lam`` (N, m) (constraint forces) and ``dv`` (N,) (size of the velocity correction);
+    its C varies whenever the scene names outputs.
     """
 
     points: int
@@ -82,19 +94,39 @@ class Layout:
     p: int
     frames: bool
     has_y: bool
+    nx: int = 0
+    m: int = 0
 
     @classmethod
-    def of(cls, system: System, points: int) -> Layout:
+    def of(cls, system: System, points: int, nz: int | None = None) -> Layout:
+        """The layout of ``points`` points; ``nz``: a mechanism's independent coordinates."""
         spec = system.outputs
-        p = 2 * system.nv if spec is None else len(spec.names)
-        return cls(points, system.nq, system.nv, len(system.actuated), p,
-                   spec is not None and bool(spec.frames), spec is not None)
+        loops = nz is not None
+        n = 2 * (system.nv if nz is None else nz)
+        p = n if spec is None else len(spec.names)
+        frames = spec is not None and (bool(spec.frames) or loops)
+        return cls(points, system.nq, system.nv, len(system.actuated), p, frames,
+                   spec is not None, n if loops else 0,
+                   system.constraints.size if loops else 0)
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return self.nx or 2 * self.nv
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """Names of the arrays the caller fills before :func:`fill`."""
+        return ("q", "v", "u", "cond") if self.nx else ("q", "v", "u")
 
     def shapes(self, points: int | None = None) -> dict[str, tuple[int, ...]]:
         N = self.points if points is None else points
-        n = 2 * self.nv
+        n = self.n
         out = {"q": (N, self.nq), "v": (N, self.nv), "u": (N, self.nu), "A": (N, n, n),
                "B": (N, n, self.nu), "f0": (N, n), "bad": (N,)}
+        if self.nx:
+            out.update({"cond": (N,), "vp": (N, self.nv), "acc": (N, self.nv),
+                        "lam": (N, self.m), "dv": (N,)})
         if self.frames:
             out["C"] = (N, self.p, n)
         if self.has_y:
@@ -207,6 +239,11 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
             matrix, ...), its message starting with the point's index.
     """
     if hi <= lo:
+        return
+    if options.frozen is not None:
+        from .trajectory_loops import fill as fill_loops
+
+        fill_loops(system, arrays, lo, hi, options.frozen)
         return
     if not batch_path(system, options):
         _fill_per_point(system, arrays, lo, hi, options)

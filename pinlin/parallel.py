@@ -214,11 +214,11 @@ def shutdown() -> None:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def run_processes(system: System, layout: Layout, q: np.ndarray, v: np.ndarray,
-                  u: np.ndarray, options: Options, workers: int, chunk: int | None,
+def run_processes(system: System, layout: Layout, inputs: Mapping[str, np.ndarray],
+                  options: Options, workers: int, chunk: int | None,
                   progress: Callable[[int, int], None] | None) -> dict[str, np.ndarray]:
     """Fill the stack with ``workers`` processes on one shared segment; the returned arrays
-    are views of it."""
+    are views of it. ``inputs``: the arrays named by ``layout.inputs`` (q, v, u, ...)."""
     N = layout.points
     _, size = layout.offsets()
     chunk = chunk or max(MIN_CHUNK, math.ceil(N / (TASKS_PER_WORKER * workers)))
@@ -226,7 +226,8 @@ def run_processes(system: System, layout: Layout, q: np.ndarray, v: np.ndarray,
     segment = _Segment(size)
     try:
         arrays = layout.views(segment.map)
-        arrays["q"][:], arrays["v"][:], arrays["u"][:] = q, v, u
+        for name in layout.inputs:
+            arrays[name][:] = inputs[name]
         try:
             _run_pool(_pool(workers), blob, key, segment, layout, options, chunk, progress)
         except BrokenProcessPool:  # a worker died (killed, out of memory): one fresh try
@@ -289,29 +290,32 @@ def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
 # Executors (Dask and any concurrent.futures.Executor).
 
 
-def _chunk_task(blob: bytes, key: str, layout: Layout, q: np.ndarray, v: np.ndarray,
-                u: np.ndarray, options: Options) -> dict[str, Any]:
+def _chunk_task(blob: bytes, key: str, layout: Layout, inputs: dict[str, np.ndarray],
+                options: Options) -> dict[str, Any]:
     """On an executor's worker: the stacked arrays of one chunk (inputs not sent back), or
     ``{"error": (class name, message)}``."""
     try:
         system = cached_system(blob, key)
-        arrays = {**layout.allocate(q.shape[0]), "q": q, "v": v, "u": u}
-        fill(system, arrays, 0, q.shape[0], options)
+        points = inputs["q"].shape[0]
+        arrays = {**layout.allocate(points), **inputs}
+        fill(system, arrays, 0, points, options)
     except PinlinError as exc:
         return {"error": _portable(exc)}
-    return {k: val for k, val in arrays.items() if k not in ("q", "v", "u")}
+    return {k: val for k, val in arrays.items() if k not in layout.inputs}
 
 
-def run_executor(system: System, layout: Layout, q: np.ndarray, v: np.ndarray, u: np.ndarray,
+def run_executor(system: System, layout: Layout, inputs: Mapping[str, np.ndarray],
                  options: Options, executor: Executor, chunk: int | None,
                  progress: Callable[[int, int], None] | None) -> dict[str, np.ndarray]:
-    """Fill the stack with chunks run by ``executor``."""
+    """Fill the stack with chunks run by ``executor``; ``inputs`` as for
+    :func:`run_processes`."""
     N = layout.points
     chunk = chunk or max(MIN_CHUNK, math.ceil(N / EXECUTOR_TASKS))
     blob, key = share(system.scene)
-    arrays = {**layout.allocate(), "q": q, "v": v, "u": u}
+    arrays = {**layout.allocate(), **{name: inputs[name] for name in layout.inputs}}
     part = replace(layout, points=0)  # the chunk's size comes with its rows
-    futures = {executor.submit(_chunk_task, blob, key, part, q[lo:hi], v[lo:hi], u[lo:hi],
+    futures = {executor.submit(_chunk_task, blob, key, part,
+                               {name: inputs[name][lo:hi] for name in layout.inputs},
                                options): (lo, hi) for lo, hi in _chunks(N, chunk)}
 
     def take(result: dict[str, Any], lo: int, hi: int) -> None:

@@ -1,15 +1,16 @@
 """Linear models along a trajectory: ``pinlin.linearize_trajectory`` and ``TrajectoryModel``.
 
 A trajectory is N states (q_k, v_k, u_k), optionally at times t_k. Its model is the stack of
-the N affine models of :func:`pinlin.linearize` at those states (independent formulation, open
-chains)::
+the N affine models of :func:`pinlin.linearize` at those states (independent formulation;
+mechanisms in the independent coordinates of their first point, :mod:`pinlin.trajectory_loops`)::
 
     x' = f0_k + A_k x + B_k u,   y = C_k x + D_k u,   x = [dq; v] about (q_k, v_k), u about u_k
 
 stored as arrays with the point first: ``A`` (N, n, n), ``B`` (N, n, m), ``C`` (N, p, n),
 ``D`` (N, p, m), ``f0`` (N, n); ``model.at(k)`` is the k-th :class:`~pinlin.LinearModel`.
 How the stack is computed (one pass of ``pin.computeABADerivatives`` per point, or
-:func:`pinlin.linearize` per point where that kernel does not apply) is in :mod:`pinlin.batch`;
+:func:`pinlin.linearize` per point where that kernel does not apply) is in :mod:`pinlin.batch`
+(mechanisms: assembled and linearized point by point, :mod:`pinlin.trajectory_loops`);
 worker processes and executors (Dask) in :mod:`pinlin.parallel`; files in
 :mod:`pinlin.trajectory_files`.
 """
@@ -20,14 +21,13 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
-from os import PathLike
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 import scipy.linalg as sla
 
+from . import trajectory_loops as loops
 from .batch import Layout, Options, batch_path, check, constant_outputs, fill
 from .derivatives import BACKENDS, resolve_steps
 from .exceptions import ArgumentError, ModelError, ShapeError
@@ -36,13 +36,12 @@ from .operating_point import OperatingPoint
 from .resources import check_memory
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
+from .trajectory_inputs import check_normalized, points, positive_int, system_of, times
 
 #: Points per progress report (and per vectorized block) when one process does the work.
 SERIAL_BLOCK = 256
 #: Points per block of the vectorized zero-order hold (bounds its temporary memory).
 ZOH_BLOCK = 128
-#: A configuration's unit-norm parts (quaternions, (cos, sin) pairs) may be off by this.
-NORM_TOLERANCE = 1e-6
 _METHODS = ("zoh", "euler")
 
 
@@ -65,6 +64,12 @@ class TrajectoryModel:
         info: Metadata: formulation, derivatives, effects, base, points, path ("batch": one
             ``computeABADerivatives`` per point; "per point": :func:`pinlin.linearize`).
         dt: Sample time [s] of discrete models; 0 for continuous ones.
+        lam: (N, m) constraint forces of a mechanism [N or N*m] (names in
+            ``info["lam_names"]``; :mod:`pinlin.trajectory_loops`), else None. A mechanism's
+            states are its independent coordinates z (``info["independent"]``), the same at
+            every point; its ``q`` are the assembled configurations, ``v`` the velocities
+            projected onto the constraint nullspace, ``a`` the accelerations of all nv
+            coordinates.
     """
 
     A: np.ndarray
@@ -84,6 +89,7 @@ class TrajectoryModel:
     name: str = ""
     info: Mapping[str, Any] = field(default_factory=dict)
     dt: float = 0.0
+    lam: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         names = {}
@@ -101,10 +107,11 @@ class TrajectoryModel:
         nv = np.shape(self.v)[-1] if np.ndim(self.v) == 2 else -1
         shapes = {"A": (N, n, n), "B": (N, n, m), "C": (N, p, n), "D": (N, p, m),
                   "f0": (N, n), "v": (N, nv), "u": (N, m), "a": (N, nv), "t": (N,),
-                  "y": (N, p), "q": (N, np.shape(self.q)[-1] if np.ndim(self.q) == 2 else -1)}
+                  "y": (N, p), "q": (N, np.shape(self.q)[-1] if np.ndim(self.q) == 2 else -1),
+                  "lam": (N, np.shape(self.lam)[-1] if np.ndim(self.lam) == 2 else -1)}
         for key, shape in shapes.items():
             value = getattr(self, key)
-            if value is None and key in ("t", "y"):
+            if value is None and key in ("t", "y", "lam"):
                 continue
             arr = _stack(key, value, shape)
             object.__setattr__(self, key, arr)
@@ -159,14 +166,21 @@ class TrajectoryModel:
                                      f"down to -{N}), got {k}")
         k = int(k) % N
         q, v, u, a = self.q[k], self.v[k], self.u[k], self.a[k]
-        moving = bool(v.any() or a.any())
+        moving = bool(v.any() or a.any()) or self.lam is not None
         when = f" (t = {self.t[k]:.6g} s)" if self.t is not None else ""
+        info = {**self.info, "point": k}
+        loop_info = info.pop("loops", None)
+        if loop_info is not None:  # a mechanism: its point's diagnostics, as linearize's
+            info["condition"] = {"constraint_jacobian": loop_info["condition"][k]}
+            info["velocity_correction"] = loop_info["velocity_correction"][k]
+            info["position_correction"] = loop_info["position_correction"][k]
         op = OperatingPoint.trusted(
             q=q, v=v, u=u, a=a, residual=None, equilibrium=not moving, tolerance=0.0,
-            y=None if self.y is None else self.y[k], lam=None, lam_names=(),
+            y=None if self.y is None else self.y[k],
+            lam=None if self.lam is None else self.lam[k],
+            lam_names=tuple(self.info.get("lam_names", ())) if self.lam is not None else (),
             notes=(f"point {k} of {N} of a trajectory{when}: the state is given; the "
                    "residual M a0 is not computed in a batch (a0 is operating_point.a)",))
-        info = {**self.info, "point": k}
         if self.t is not None:
             info["t"] = float(self.t[k])
         return LinearModel.assembled(
@@ -291,110 +305,6 @@ def _euler(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
 # linearize_trajectory
 
 
-def _system(scene: object) -> System:
-    """The system of a Scene, a System, or a scene file / URDF / bundled scene / robot name
-    (as :func:`pinlin.linearize` accepts)."""
-    if isinstance(scene, System):
-        return scene
-    if isinstance(scene, Scene):
-        return scene.system
-    if isinstance(scene, str | PathLike):
-        return Scene.resolve(scene).system
-    raise ArgumentError("scene", "expected a pinlin.Scene, a pinlin.System, or a scene file, "
-                                 "URDF, bundled scene or robot name (str or path), got "
-                                 f"{type(scene).__name__}")
-
-
-def _rows(name: str, value: object, width: int, what: str, points: int | None,
-          limit: float) -> np.ndarray:
-    """``value`` as a C-ordered (N, width) float64 copy: finite, |x| <= limit, N rows (or
-    ``points`` rows when given)."""
-    expected = f"an (N, {width}) array ({what}, one row per point)"
-    try:
-        arr = np.array(value, dtype=float, order="C")
-    except (TypeError, ValueError, OverflowError):
-        raise ArgumentError(name, f"expected {expected}, got {value!r:.80}") from None
-    if arr.ndim == 1 and width == 0 and points is not None and arr.size == 0:
-        arr = arr.reshape(points, 0)
-    if arr.ndim != 2 or arr.shape[1] != width:
-        raise ShapeError(f"argument '{name}' must have shape (N, {width}) ({what}, one row "
-                         f"per point), got shape {arr.shape}")
-    if points is not None and arr.shape[0] != points:
-        raise ShapeError(f"argument '{name}' has {arr.shape[0]} rows, argument 'q' has "
-                         f"{points}: one row per point in each")
-    if arr.shape[0] == 0:
-        raise ArgumentError(name, "expected at least one point (row), got none")
-    finite = np.isfinite(arr)
-    if not finite.all():
-        k, j = (int(i) for i in np.argwhere(~finite)[0])
-        raise ArgumentError(name, f"row {k} has NaN or inf (column {j})")
-    big = np.abs(arr) > limit
-    if big.any():
-        k, j = (int(i) for i in np.argwhere(big)[0])
-        raise ArgumentError(name, f"row {k} has an entry of size {abs(arr[k, j]):.3g} "
-                                  f"(column {j}); {what} are limited to |x| <= {limit:g}")
-    return arr
-
-
-def _check_normalized(system: System, q: np.ndarray) -> None:
-    """Every row's unit-norm parts (quaternions of free-flyer and spherical joints, (cos, sin)
-    of continuous and planar joints) within :data:`NORM_TOLERANCE`, vectorized; other joints
-    whose configuration is not a vector space row by row with ``pin.isNormalized``."""
-    model = system.model
-    other = False
-    for j in system.joints.values():
-        if j.nq == j.nv:
-            continue
-        start = {"JointModelFreeFlyer": 3, "JointModelSpherical": 0,
-                 "JointModelPlanar": 2}.get(j.kind, 0 if j.continuous else None)
-        if start is None:
-            other = True
-            continue
-        part = q[:, j.idx_q + start:j.idx_q + j.nq]
-        norms = np.sqrt(np.einsum("ij,ij->i", part, part))
-        bad = np.abs(norms - 1.0) > NORM_TOLERANCE
-        if bad.any():
-            k = int(np.argmax(bad))
-            kind = "quaternion" if part.shape[1] == 4 else "(cos, sin) pair"
-            raise ArgumentError("q", f"row {k} is not normalized: the {kind} of joint "
-                                     f"'{j.name}' (columns {j.idx_q + start}-"
-                                     f"{j.idx_q + j.nq - 1}) has norm {norms[k]:.9g}; it must "
-                                     "have unit norm (pinlin never normalizes for you)")
-    if other:
-        for k, row in enumerate(q):
-            if not pin.isNormalized(model, row, NORM_TOLERANCE):
-                raise ArgumentError("q", f"row {k} is not normalized (pin.isNormalized)")
-
-
-def _times(t: object, points: int) -> np.ndarray | None:
-    if t is None:
-        return None
-    try:
-        arr = np.array(t, dtype=float).reshape(-1) if np.ndim(t) <= 1 else None
-    except (TypeError, ValueError, OverflowError):
-        arr = None
-    if arr is None or arr.shape != (points,):
-        raise ArgumentError("t", f"expected {points} times [s] (one per point), got "
-                                 f"{t!r:.80}")
-    if not np.isfinite(arr).all():
-        raise ArgumentError("t", f"entry {int(np.argmin(np.isfinite(arr)))} is NaN or inf")
-    step = np.diff(arr)
-    if (step <= 0).any():
-        k = int(np.argmax(step <= 0)) + 1
-        raise ArgumentError("t", f"times must increase strictly: t[{k}] = {arr[k]:.9g} s "
-                                 f"after t[{k - 1}] = {arr[k - 1]:.9g} s")
-    arr.setflags(write=False)
-    return arr
-
-
-def _positive_int(name: str, value: object, allow_none: bool = False) -> int | None:
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ArgumentError(name, f"expected a whole number >= 1, got {value!r}")
-    return int(value)
-
-
 def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: np.ndarray,
                          u: np.ndarray, t: np.ndarray | None = None, *, workers: int = 1,
                          executor: Executor | None = None, derivatives: str = "analytic",
@@ -405,9 +315,17 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
     """Linear models of a scene at N states, stacked (see :class:`TrajectoryModel`).
 
     Point k is the model :func:`pinlin.linearize` gives at ``q=q[k], v=v[k], u=u[k]``
-    (independent formulation; open chains). With analytic derivatives and no steady rotation
-    the stack comes from one ``pin.computeABADerivatives`` per point written straight into
-    the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize` per point.
+    (independent formulation). With analytic derivatives and no steady rotation the stack of
+    an open chain comes from one ``pin.computeABADerivatives`` per point written straight
+    into the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize` per point.
+
+    A mechanism (loops, mimic couplings; analytic derivatives, fixed base, point loops) is
+    assembled point by point, each from the one before where q[k] does not close its loops,
+    its velocities projected onto the nullspace of Phi_q, and every point is linearized in
+    the independent coordinates chosen at point 0 (:mod:`pinlin.trajectory_loops`): point k
+    is what :func:`pinlin.linearize` gives at ``q=model.q[k], v=v[k], u=u[k]`` (the
+    assembled configuration) whenever that call chooses the same coordinates (always when
+    the scene names them).
 
     Args:
         scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
@@ -433,16 +351,16 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
         ShapeError: an array of the wrong shape (the message names the argument).
         ArgumentError: NaN, inf or out-of-range entries, configurations that are not
             normalized (naming the argument and the first bad row), or a bad option.
-        ModelError: a scene with loops or mimic couplings, or a point where the model cannot
-            be built (a singular mass matrix), naming the first such point.
+        ModelError: a point where the model cannot be built (a singular mass matrix; for a
+            mechanism, a point where the independent coordinates of point 0 cannot
+            parametrize it), naming the first such point; a mechanism with what
+            :func:`pinlin.linearize` does not support at a moving state (fd3/fd5, welds, a
+            floating base).
+        AssemblyError: a mechanism's loops do not close at a point, naming it.
         ResourceError: the stacked models would exceed the memory limit
             (:func:`pinlin.set_memory_limit`).
     """
-    system = _system(scene)
-    if system.constraints:
-        raise ModelError(f"scene '{system.scene.name}' has loops or mimic couplings: "
-                         "linearize_trajectory handles open chains (independent formulation) "
-                         "so far; trajectories of closed chains are not supported yet")
+    system = system_of(scene)
     if not isinstance(derivatives, str) or derivatives not in BACKENDS:
         raise ArgumentError("derivatives", f"expected one of "
                                            f"{', '.join(map(repr, BACKENDS))}, got "
@@ -452,8 +370,8 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
             raise ArgumentError("step", "a finite-difference step applies to derivatives "
                                         "'fd3' and 'fd5'; the analytic derivatives take none")
         resolve_steps(derivatives, step)
-    workers = _positive_int("workers", workers)
-    chunk = _positive_int("chunk", chunk, allow_none=True)
+    workers = positive_int("workers", workers)
+    chunk = positive_int("chunk", chunk, allow_none=True)
     if executor is not None and not isinstance(executor, Executor):
         raise ArgumentError("executor", "expected a concurrent.futures.Executor (for Dask: "
                                         f"client.get_executor()), got {type(executor).__name__}")
@@ -463,33 +381,42 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
     if progress is not None and not callable(progress):
         raise ArgumentError("progress", "expected a function progress(done, total)")
     nu = len(system.actuated)
-    Q = _rows("q", q, system.nq, "configurations", None, POSITION_LIMIT)
+    Q = points("q", q, system.nq, "configurations", None, POSITION_LIMIT)
     N = Q.shape[0]
-    V = _rows("v", v, system.nv, "velocities", N, COEFFICIENT_LIMIT)
-    U = _rows("u", u, nu, "inputs", N, COEFFICIENT_LIMIT)
-    _check_normalized(system, Q)
-    T = _times(t, N)
+    V = points("v", v, system.nv, "velocities", N, COEFFICIENT_LIMIT)
+    U = points("u", u, nu, "inputs", N, COEFFICIENT_LIMIT)
+    check_normalized(system, Q)
+    T = times(t, N)
 
-    options = Options(derivatives, step)
-    layout = Layout.of(system, N)
+    inputs = {"q": Q, "v": V, "u": U}
+    frozen = moved = None
+    if system.constraints:  # a mechanism: pinlin.trajectory_loops
+        loops.refuse(system, derivatives)
+        check_memory(Q.nbytes, f"scene '{system.scene.name}': the assembled configurations "
+                               f"of {N} points", "8 bytes a number")
+        inputs["q"], frozen, inputs["cond"], moved = loops.close_loops(system, Q)
+    options = Options(derivatives, step, frozen)
+    layout = Layout.of(system, N, None if frozen is None else len(frozen.independent))
     check_memory(layout.offsets()[1], f"scene '{system.scene.name}': the models of {N} points",
                  "A, B and f0 stacked, 8 bytes a number")
     if executor is not None:
         from .parallel import run_executor
 
-        arrays = run_executor(system, layout, Q, V, U, options, executor, chunk, progress)
+        arrays = run_executor(system, layout, inputs, options, executor, chunk, progress)
     elif workers > 1:
         from .parallel import run_processes
 
-        arrays = run_processes(system, layout, Q, V, U, options, workers, chunk, progress)
+        arrays = run_processes(system, layout, inputs, options, workers, chunk, progress)
     else:
-        arrays = {**layout.allocate(), "q": Q, "v": V, "u": U}
+        arrays = {**layout.allocate(), **inputs}
         for lo in range(0, N, SERIAL_BLOCK):
             hi = min(N, lo + SERIAL_BLOCK)
             fill(system, arrays, lo, hi, options)
             if progress is not None:
                 progress(hi, N)
     check(system, arrays)
+    if frozen is not None:
+        return _assemble_loops(system, arrays, layout, T, frozen, moved)
     return _assemble(system, arrays, layout, T, options)
 
 
@@ -524,6 +451,30 @@ def _assemble(system: System, arrays: Mapping[str, np.ndarray], layout: Layout,
         input_names=system.input_names,
         output_names=system.state_names if spec is None else spec.names,
         name=system.scene.name, info=info, dt=0.0)
+
+
+def _assemble_loops(system: System, arrays: Mapping[str, np.ndarray], layout: Layout,
+                    t: np.ndarray | None, frozen: loops.FrozenPartition,
+                    moved: np.ndarray) -> TrajectoryModel:
+    """A mechanism's stack (:mod:`pinlin.trajectory_loops`) as a TrajectoryModel."""
+    N, n, p, nu = layout.points, layout.n, layout.p, layout.nu
+    states = frozen.state_names(system)
+    C = arrays.get("C")
+    if C is None:
+        C = np.broadcast_to(np.eye(n), (N, n, n))
+    y = arrays.get("y")
+    if y is None:
+        y = np.broadcast_to(np.zeros(p), (N, p))
+    fields = {"A": arrays["A"], "B": arrays["B"], "C": C, "f0": arrays["f0"],
+              "q": arrays["q"], "v": arrays["vp"], "u": arrays["u"], "a": arrays["acc"],
+              "lam": arrays["lam"], "y": y}
+    for arr in fields.values():
+        arr.setflags(write=False)
+    return TrajectoryModel.trusted(
+        **fields, D=np.broadcast_to(np.zeros((p, nu)), (N, p, nu)), t=t, state_names=states,
+        input_names=system.input_names,
+        output_names=states if system.outputs is None else system.outputs.names,
+        name=system.scene.name, info=loops.info(system, frozen, arrays, moved), dt=0.0)
 
 
 __all__ = ["TrajectoryModel", "linearize_trajectory"]

@@ -13,7 +13,8 @@
   and blank lines are skipped.
 
 **Models** (:meth:`TrajectoryModel.save`): ``.npz`` or MATLAB ``.mat`` holding ``A``, ``B``,
-``C``, ``D``, ``f0``, ``q``, ``v``, ``u``, ``a``, ``y`` and ``t`` when there are times, the
+``C``, ``D``, ``f0``, ``q``, ``v``, ``u``, ``a``, ``y``, ``t`` when there are times and
+``lam`` for a mechanism, the
 signal names and a JSON ``meta`` (kind, name, info, dt). C, D and y that do not vary are
 stored once, with a first axis of 1. Written atomically; read as
 :mod:`pinlin.model_files` reads single models (headers checked before anything is allocated,
@@ -195,8 +196,8 @@ def save_trajectory_model(model: Any, path: str | Path) -> Path:
                                    f"{' or '.join(MODEL_FORMATS)}")
     check_file_target(path)
     arrays = {k: _stored(getattr(model, k)) for k in _STACKS}
-    for key in ("y", "t"):
-        if getattr(model, key) is not None:
+    for key in ("y", "t", "lam"):
+        if getattr(model, key, None) is not None:
             arrays[key] = _stored(getattr(model, key))
     try:
         meta = json.dumps(jsonable({"kind": KIND, "version": 1, "name": model.name,
@@ -238,7 +239,7 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
     if missing:
         raise ModelFileError(path, f"missing {', '.join(map(repr, missing))}")
     fields: dict[str, Any] = {k: _read_names(path, k, doc[k]) for k in _NAMES}
-    for key in (*_STACKS, "t", "y"):
+    for key in (*_STACKS, "t", "y", "lam"):
         if key not in doc:
             continue
         arr = np.asarray(doc[key])

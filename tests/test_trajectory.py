@@ -399,8 +399,8 @@ def _bad_cases():
                         "argument 'derivatives'"),
         "step": ((ur5, q, v, u), {"step": 1e-4}, pinlin.ArgumentError,
                  "analytic derivatives take none"),
-        "loops": (("four_bar", np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 1))), {},
-                  pinlin.ModelError, "open chains .* not supported yet"),
+        "loops_fd": (("four_bar", np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 1))),
+                     {"derivatives": "fd5"}, pinlin.ModelError, "analytic derivatives only"),
         "scene": ((42, q, v, u), {}, pinlin.ArgumentError, "argument 'scene'"),
     }
 

@@ -37,9 +37,8 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-import scipy.linalg as sla
 
-from ..assembly import assemble, partition, projection
+from ..assembly import Partition, assemble, partition, projection
 from ..derivatives import second_order_terms
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import ModelError
@@ -66,11 +65,29 @@ def moving_point(system, q_guess: np.ndarray, v0: np.ndarray, u0: np.ndarray
     q0 = assemble(system, q_guess, guess_part.independent)
     jac = cons.jacobian(q0)
     part = partition(system, q0, jac)
+    return state_at(system, q0, v0, u0, part, jac)
+
+
+def project_velocity(G: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(v, correction): the orthogonal projection of ``v0`` [rad/s or m/s] onto the nullspace
+    of G (the independent rows of Phi_q), v = v0 - G^T (G G^T)^-1 G v0: the consistent
+    velocity closest to the one given, and the correction v0 - v."""
+    if not len(G):
+        return v0.copy(), np.zeros_like(v0)
+    correction = G.T @ np.linalg.lstsq(G @ G.T, G @ v0, rcond=None)[0]
+    return v0 - correction, correction
+
+
+def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Partition,
+             jac: np.ndarray) -> tuple[OperatingPoint, ConstrainedPoint]:
+    """The operating point at an assembled configuration ``q0`` whose constraint Jacobian is
+    ``jac`` (all rows) and partition ``part``: v0 [rad/s or m/s] projected
+    (:func:`project_velocity`), (a0, lam0) from the constrained dynamics with inputs ``u0``
+    [N*m or N]. What :func:`moving_point` does once the loops are closed; trajectories call
+    it with the partition of their first point."""
+    cons = system.constraints
     G = jac[part.rows]
-    # Orthogonal projection of v0 onto the nullspace of G: v - G^T (G G^T)^-1 G v.
-    correction = G.T @ np.linalg.lstsq(G @ G.T, G @ v0, rcond=None)[0] if len(G) else \
-        np.zeros_like(v0)
-    v = v0 - correction
+    v, correction = project_velocity(G, v0)
     a0, lam_k = _constrained_dynamics(system, q0, v, u0, G, part)
     lam = np.zeros(cons.size)
     lam[part.rows] = lam_k
@@ -99,10 +116,15 @@ def _applied(system, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
     return tau
 
 
-def _kkt(M: np.ndarray, G: np.ndarray) -> tuple:
-    """LU factors of [[M, -G^T], [G, 0]]."""
-    m = G.shape[0]
-    return sla.lu_factor(np.block([[M, -G.T], [G, np.zeros((m, m))]]))
+def _kkt(M: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """The KKT matrix [[M, -G^T], [G, 0]] (solved by LAPACK's gesv: the LU factorization
+    with partial pivoting that ``scipy.linalg.lu_factor`` gives, in one call)."""
+    m, nv = G.shape
+    out = np.zeros((nv + m, nv + m))
+    out[:nv, :nv] = M
+    out[:nv, nv:] = -G.T
+    out[nv:, :nv] = G
+    return out
 
 
 def _constrained_dynamics(system, q, v, u, G, part) -> tuple[np.ndarray, np.ndarray]:
@@ -111,7 +133,7 @@ def _constrained_dynamics(system, q, v, u, G, part) -> tuple[np.ndarray, np.ndar
     M = system.mass_matrix(q)
     rhs = np.concatenate([_applied(system, q, v, u) - system.rnea(q, v, np.zeros(nv)),
                           -system.constraints.bias_acceleration(q, v)[part.rows]])
-    sol = sla.lu_solve(_kkt(M, G), rhs)
+    sol = np.linalg.solve(_kkt(M, G), rhs)
     return sol[:nv], sol[nv:]
 
 
@@ -127,11 +149,11 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
     S = system.input_matrix
     c_q = cons.jacobian_variation(op.q, op.a)[rows] + _gamma_derivative(system, op)[rows]
     c_v = 2.0 * cons.jacobian_variation(op.q, op.v)[rows]
-    lu = _kkt(terms.M, G)
+    kkt = _kkt(terms.M, G)
     m = len(rows)
     rhs = np.vstack([np.hstack([-terms.K, -C, S]),
                      np.hstack([-c_q, -c_v, np.zeros((m, S.shape[1]))])])
-    F = sla.lu_solve(lu, rhs)[:nv]
+    F = np.linalg.solve(kkt, rhs)[:nv]
     F_q, F_v, F_u = F[:, :nv], F[:, nv:2 * nv], F[:, 2 * nv:]
     R = projection(G, part)
     W = np.zeros((nv, nz))
@@ -260,4 +282,4 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
 
 
 __all__ = ["linearize_moving", "linearize_moving_penalty", "moving_point",
-           "refuse_unsupported"]
+           "project_velocity", "refuse_unsupported", "state_at"]

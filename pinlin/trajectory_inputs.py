@@ -1,0 +1,125 @@
+"""Checks of :func:`pinlin.linearize_trajectory`'s arguments: the scene, the (N, width) arrays
+of states and inputs, normalized configurations, times, counts. Each refusal names the
+argument and, for arrays, the first bad row."""
+
+from __future__ import annotations
+
+from os import PathLike
+
+import numpy as np
+import pinocchio as pin
+
+from .exceptions import ArgumentError, ShapeError
+from .scene import Scene
+from .system import System
+
+#: A configuration's unit-norm parts (quaternions, (cos, sin) pairs) may be off by this.
+NORM_TOLERANCE = 1e-6
+
+
+def system_of(scene: object) -> System:
+    """The system of a Scene, a System, or a scene file / URDF / bundled scene / robot name
+    (as :func:`pinlin.linearize` accepts)."""
+    if isinstance(scene, System):
+        return scene
+    if isinstance(scene, Scene):
+        return scene.system
+    if isinstance(scene, str | PathLike):
+        return Scene.resolve(scene).system
+    raise ArgumentError("scene", "expected a pinlin.Scene, a pinlin.System, or a scene file, "
+                                 "URDF, bundled scene or robot name (str or path), got "
+                                 f"{type(scene).__name__}")
+
+
+def points(name: str, value: object, width: int, what: str, points: int | None,
+          limit: float) -> np.ndarray:
+    """``value`` as a C-ordered (N, width) float64 copy: finite, |x| <= limit, N rows (or
+    ``points`` rows when given)."""
+    expected = f"an (N, {width}) array ({what}, one row per point)"
+    try:
+        arr = np.array(value, dtype=float, order="C")
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentError(name, f"expected {expected}, got {value!r:.80}") from None
+    if arr.ndim == 1 and width == 0 and points is not None and arr.size == 0:
+        arr = arr.reshape(points, 0)
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise ShapeError(f"argument '{name}' must have shape (N, {width}) ({what}, one row "
+                         f"per point), got shape {arr.shape}")
+    if points is not None and arr.shape[0] != points:
+        raise ShapeError(f"argument '{name}' has {arr.shape[0]} rows, argument 'q' has "
+                         f"{points}: one row per point in each")
+    if arr.shape[0] == 0:
+        raise ArgumentError(name, "expected at least one point (row), got none")
+    finite = np.isfinite(arr)
+    if not finite.all():
+        k, j = (int(i) for i in np.argwhere(~finite)[0])
+        raise ArgumentError(name, f"row {k} has NaN or inf (column {j})")
+    big = np.abs(arr) > limit
+    if big.any():
+        k, j = (int(i) for i in np.argwhere(big)[0])
+        raise ArgumentError(name, f"row {k} has an entry of size {abs(arr[k, j]):.3g} "
+                                  f"(column {j}); {what} are limited to |x| <= {limit:g}")
+    return arr
+
+
+def check_normalized(system: System, q: np.ndarray) -> None:
+    """Every row's unit-norm parts (quaternions of free-flyer and spherical joints, (cos, sin)
+    of continuous and planar joints) within :data:`NORM_TOLERANCE`, vectorized; other joints
+    whose configuration is not a vector space row by row with ``pin.isNormalized``."""
+    model = system.model
+    other = False
+    for j in system.joints.values():
+        if j.nq == j.nv:
+            continue
+        start = {"JointModelFreeFlyer": 3, "JointModelSpherical": 0,
+                 "JointModelPlanar": 2}.get(j.kind, 0 if j.continuous else None)
+        if start is None:
+            other = True
+            continue
+        part = q[:, j.idx_q + start:j.idx_q + j.nq]
+        norms = np.sqrt(np.einsum("ij,ij->i", part, part))
+        bad = np.abs(norms - 1.0) > NORM_TOLERANCE
+        if bad.any():
+            k = int(np.argmax(bad))
+            kind = "quaternion" if part.shape[1] == 4 else "(cos, sin) pair"
+            raise ArgumentError("q", f"row {k} is not normalized: the {kind} of joint "
+                                     f"'{j.name}' (columns {j.idx_q + start}-"
+                                     f"{j.idx_q + j.nq - 1}) has norm {norms[k]:.9g}; it must "
+                                     "have unit norm (pinlin never normalizes for you)")
+    if other:
+        for k, row in enumerate(q):
+            if not pin.isNormalized(model, row, NORM_TOLERANCE):
+                raise ArgumentError("q", f"row {k} is not normalized (pin.isNormalized)")
+
+
+def times(t: object, points: int) -> np.ndarray | None:
+    if t is None:
+        return None
+    try:
+        arr = np.array(t, dtype=float).reshape(-1) if np.ndim(t) <= 1 else None
+    except (TypeError, ValueError, OverflowError):
+        arr = None
+    if arr is None or arr.shape != (points,):
+        raise ArgumentError("t", f"expected {points} times [s] (one per point), got "
+                                 f"{t!r:.80}")
+    if not np.isfinite(arr).all():
+        raise ArgumentError("t", f"entry {int(np.argmin(np.isfinite(arr)))} is NaN or inf")
+    step = np.diff(arr)
+    if (step <= 0).any():
+        k = int(np.argmax(step <= 0)) + 1
+        raise ArgumentError("t", f"times must increase strictly: t[{k}] = {arr[k]:.9g} s "
+                                 f"after t[{k - 1}] = {arr[k - 1]:.9g} s")
+    arr.setflags(write=False)
+    return arr
+
+
+def positive_int(name: str, value: object, allow_none: bool = False) -> int | None:
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ArgumentError(name, f"expected a whole number >= 1, got {value!r}")
+    return int(value)
+
+
+__all__ = ["NORM_TOLERANCE", "check_normalized", "points", "positive_int", "system_of",
+           "times"]

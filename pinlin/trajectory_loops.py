@@ -1,0 +1,250 @@
+"""Trajectories of mechanisms: loops (and mimic couplings) along ``linearize_trajectory``.
+
+Point k of a mechanism's trajectory is the model :func:`pinlin.linearize` gives at
+``q=q[k], v=v[k], u=u[k]`` (independent coordinates, partitioned basis, eqs. 9.8-9.11 with
+every velocity term: :mod:`pinlin.formulations.motion`), with one difference that a trajectory
+needs: **every point has the same coordinates.** The partition (independent constraint rows
+and independent coordinates z) is chosen once, at point 0, exactly as :func:`pinlin.linearize`
+chooses it there (the scene's ``operating_point.independent``, else pinlin's pivoted QR), and
+frozen; so are the state names ``q:<z>``, ``v:<z>``. A time-varying LQR, an iLQR pass or a
+Riccati recursion chains the points' models, which only makes sense in one set of
+coordinates: pinlin never re-partitions along a trajectory.
+
+Two passes:
+
+1. :func:`close_loops` (serial, in the calling process: each point starts from the one
+   before): point k is assembled (Newton on the dependent coordinates, z held,
+   :func:`pinlin.assembly.assemble`) from the given q[k] when it closes the loops already
+   (max |Phi| <= :data:`~pinlin.assembly.ASSEMBLY_TOL`: it is kept as given, as
+   ``linearize`` keeps it), else from q[k]'s independent coordinates with the dependent ones
+   of point k-1's solution (the warm start: it keeps the branch the trajectory is on). There
+   the frozen partition is checked: the 2-norm condition of Phi_d, the Jacobian block of the
+   dependent coordinates, above :data:`REFUSE_CONDITION` (the limit at which ``linearize``
+   refuses a partition) raises a :class:`~pinlin.ModelError` naming the point; above
+   :data:`WARN_CONDITION` one :class:`~pinlin.AccuracyWarning` names the worst point.
+2. :func:`fill` (any process: :mod:`pinlin.batch`, :mod:`pinlin.parallel`): at each
+   assembled point, the velocity projected onto the nullspace of Phi_q
+   (:func:`~pinlin.formulations.motion.project_velocity`; the projected v is the model's
+   ``v``, the size of the correction is reported), the constrained dynamics and the model
+   (:func:`~pinlin.formulations.motion.state_at`,
+   :func:`~pinlin.formulations.motion.linearize_moving`). A point depends only on its own
+   assembled state, so workers and executors give the same arrays as one process.
+
+What a trajectory model of a mechanism carries besides A, B, C, D, f0: ``q`` the assembled
+configurations, ``v`` the projected velocities, ``a`` (N, nv) the accelerations of all
+coordinates, ``lam`` (N, m) the constraint forces (names in ``info["lam_names"]``), and
+``info["loops"]``: the per-point ``condition`` of Phi_d, ``position_correction`` (the norm of
+``difference(q given, q assembled)``) and ``velocity_correction`` (the norm of the projection's
+correction).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .assembly import ASSEMBLY_TOL, Partition, assemble, partition
+from .conditioning import AccuracyWarning
+from .exceptions import ModelError, PinlinError
+from .formulations.constrained import constrained_effects
+from .formulations.motion import linearize_moving, refuse_unsupported, state_at
+from .system import System
+
+#: Condition of Phi_d at which a trajectory's frozen partition is refused (the limit at which
+#: :func:`pinlin.assembly.partition` refuses one for a single model).
+REFUSE_CONDITION = 1e12
+#: Condition of Phi_d above which an AccuracyWarning names the worst point (the level at which
+#: a single model's notes say "near a singular position").
+WARN_CONDITION = 1e6
+
+
+@dataclass(frozen=True)
+class FrozenPartition:
+    """The partition chosen at a trajectory's point 0, used at every point (picklable: it
+    travels to worker processes).
+
+    Attributes:
+        rows: Indices of the independent constraint rows.
+        dropped: Names of the redundant rows dropped.
+        independent: Velocity indices of the independent coordinates z.
+        dependent: Velocity indices of the others.
+        chosen: Whether pinlin chose z (True) or the scene named it.
+    """
+
+    rows: tuple[int, ...]
+    dropped: tuple[str, ...]
+    independent: tuple[int, ...]
+    dependent: tuple[int, ...]
+    chosen: bool
+
+    @classmethod
+    def of(cls, part: Partition) -> FrozenPartition:
+        return cls(tuple(int(i) for i in part.rows), tuple(part.dropped),
+                   tuple(int(i) for i in part.independent),
+                   tuple(int(i) for i in part.dependent), bool(part.chosen))
+
+    def at(self, condition: float) -> Partition:
+        """The :class:`~pinlin.assembly.Partition` at a point where Phi_d has ``condition``."""
+        return Partition(np.array(self.rows, dtype=int), self.dropped,
+                         np.array(self.independent, dtype=int),
+                         np.array(self.dependent, dtype=int), self.chosen, float(condition))
+
+    def state_names(self, system: System) -> tuple[str, ...]:
+        coords = [system.coordinate_names[i] for i in self.independent]
+        return tuple([f"q:{c}" for c in coords] + [f"v:{c}" for c in coords])
+
+
+def refuse(system: System, derivatives: str) -> None:
+    """What a mechanism's trajectory cannot do (what :func:`pinlin.linearize` cannot do at a
+    moving state: fd3/fd5, a floating base, weld loops and contacts).
+
+    Raises:
+        ModelError: naming the scene and what is not supported.
+    """
+    refuse_unsupported(system, "independent", None, derivatives)
+
+
+def _at_point(exc: PinlinError, k: int) -> PinlinError:
+    from .batch import at_point
+
+    return at_point(exc, k)
+
+
+def close_loops(system: System, Q: np.ndarray
+                ) -> tuple[np.ndarray, FrozenPartition, np.ndarray, np.ndarray]:
+    """Assemble every point (module docstring, pass 1) and check the frozen partition there.
+
+    Args:
+        system: A system with loops or mimic couplings.
+        Q: (N, nq) configurations as given [m, rad] (normalized).
+
+    Returns:
+        (Q assembled (N, nq), the partition of point 0, the condition of Phi_d at each point
+        (N,), the norm of difference(q given, q assembled) at each point (N,) [m or rad]).
+
+    Raises:
+        AssemblyError: the loops do not close at some point (the message starts with
+            "trajectory point k: ").
+        SceneError: the scene's independent coordinates cannot parametrize the mechanism at
+            point 0.
+        ModelError: the partition of point 0 is singular (Phi_d's condition above
+            :data:`REFUSE_CONDITION`) at a later point, naming it.
+    """
+    cons, model = system.constraints, system.model
+    N = Q.shape[0]
+    out = np.empty_like(Q)
+    condition = np.empty(N)
+    moved = np.empty(N)
+    try:  # point 0 exactly as pinlin.linearize (formulations.motion.moving_point) does it
+        guess = partition(system, Q[0], check=False)
+        q = assemble(system, Q[0], guess.independent)
+        part = partition(system, q, cons.jacobian(q))
+    except PinlinError as exc:
+        raise _at_point(exc, 0) from None
+    frozen = FrozenPartition.of(part)
+    rows, z = part.rows, part.independent
+    dep = part.dependent
+    out[0], condition[0] = q, part.condition
+    for k in range(1, N):
+        q = Q[k]
+        if np.abs(cons.residual(q)).max(initial=0.0) > ASSEMBLY_TOL:
+            step = pin.difference(model, q, out[k - 1])  # warm start: the dependent
+            step[z] = 0.0                                 # coordinates of point k-1
+            try:
+                q = assemble(system, pin.integrate(model, q, step), z)
+            except PinlinError as exc:
+                raise _at_point(exc, k) from None
+        else:
+            q = q.copy()
+        G = cons.jacobian(q)[rows]
+        condition[k] = float(np.linalg.cond(G[:, dep])) if len(dep) else 1.0
+        if not condition[k] <= REFUSE_CONDITION:  # NaN too
+            raise ModelError(_singular_message(system, frozen, k, condition[k]))
+        out[k] = q
+    for k in range(N):
+        moved[k] = np.linalg.norm(pin.difference(model, Q[k], out[k]))
+    worst = int(np.argmax(condition))
+    if condition[worst] > WARN_CONDITION:
+        warnings.warn(AccuracyWarning(
+            f"scene '{system.scene.name}': near a singular position at trajectory point "
+            f"{worst}: the Jacobian of the dependent coordinates (independent coordinates "
+            f"{_names(system, frozen)}) has condition {condition[worst]:.3g}; about "
+            f"{max(16 - np.log10(condition[worst]), 0):.0f} significant digits of that "
+            "point's model are reliable", float(condition[worst])), stacklevel=3)
+    return out, frozen, condition, moved
+
+
+def _names(system: System, frozen: FrozenPartition) -> str:
+    return "[" + ", ".join(system.coordinate_names[i] for i in frozen.independent) + "]"
+
+
+def _singular_message(system: System, frozen: FrozenPartition, k: int, cond: float) -> str:
+    how = "chosen by pinlin at point 0" if frozen.chosen else \
+        "named by the scene's operating_point.independent"
+    return (f"trajectory point {k}: scene '{system.scene.name}': the independent coordinates "
+            f"{_names(system, frozen)} ({how}) cannot parametrize the mechanism here: the "
+            f"Jacobian of the dependent coordinates is singular (condition {cond:.3g}, limit "
+            f"{REFUSE_CONDITION:g}); every point of a trajectory has the same coordinates, so "
+            "pinlin does not re-partition: split the trajectory at this point, or name "
+            "independent coordinates that stay valid along it (operating_point.independent)")
+
+
+def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
+         frozen: FrozenPartition) -> None:
+    """The models of points lo:hi (module docstring, pass 2) into ``arrays``
+    (:class:`pinlin.batch.Layout` of a mechanism: inputs q (assembled), v, u, cond; results
+    A, B, f0, vp, acc, lam, dv and, with outputs, C and y).
+
+    Raises:
+        PinlinError: from the model of a point, its message starting with the point's index.
+    """
+    cons = system.constraints
+    Q, V, U, cond = arrays["q"], arrays["v"], arrays["u"], arrays["cond"]
+    A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
+    vp, acc, lam, dv = arrays["vp"], arrays["acc"], arrays["lam"], arrays["dv"]
+    C, y = arrays.get("C"), arrays.get("y")
+    for k in range(lo, hi):
+        try:
+            op, cp = state_at(system, Q[k], V[k], U[k], frozen.at(cond[k]), cons.jacobian(Q[k]))
+            model = linearize_moving(system, op, cp)
+        except PinlinError as exc:
+            raise _at_point(exc, k) from None
+        A[k] = model.A
+        B[k] = model.B
+        f0[k] = model.f0
+        vp[k] = op.v
+        acc[k] = op.a
+        lam[k] = op.lam
+        dv[k] = np.linalg.norm(V[k] - op.v)
+        if C is not None:
+            C[k] = model.C
+        if y is not None:
+            y[k] = model.operating_point.y
+
+
+def info(system: System, frozen: FrozenPartition, arrays: Mapping[str, np.ndarray],
+         moved: np.ndarray) -> dict[str, Any]:
+    """The metadata of a mechanism's trajectory model (module docstring)."""
+    cons = system.constraints
+    return {
+        "formulation": "independent", "derivatives": "analytic", "basis": "partitioned",
+        "effects": constrained_effects(system), "velocity_terms": True,
+        "base": "free" if system.base_joint else "fixed", "points": int(len(moved)),
+        "path": "per point (loops)",
+        "independent": [system.coordinate_names[i] for i in frozen.independent],
+        "independent_chosen": frozen.chosen,
+        "constraint_rows": [cons.row_names[i] for i in frozen.rows],
+        "dropped_rows": list(frozen.dropped), "lam_names": list(cons.row_names),
+        "loops": {"condition": arrays["cond"].tolist(),
+                  "position_correction": moved.tolist(),
+                  "velocity_correction": arrays["dv"].tolist()},
+    }
+
+
+__all__ = ["REFUSE_CONDITION", "WARN_CONDITION", "FrozenPartition", "close_loops", "fill",
+           "info", "refuse"]
