@@ -172,6 +172,17 @@ def response(model: LinearModel, t: np.ndarray | Sequence[float],
     if signal is None and u is not None:
         notes.append("input samples held between sample times (zero-order hold)")
     held = U if signal is None else np.zeros_like(U)   # a signal enters as exponentials
+    with np.errstate(over="ignore", invalid="ignore"):
+        x, y = _march_all(model, std, method, modes, f0, c, mu, t, held, xs0, U, E,
+                          F if signal is not None else None, notes)
+    _check_finite(model, t, x, y)
+    return _result(model, t, x, y, U, method, notes)
+
+
+def _march_all(model, std, method, modes, f0, c, mu, t, held, xs0, U, E, F, notes):
+    """(x, y) at the samples: the march in the chosen coordinates (see :func:`response`);
+    ``F`` only where the input is a signal (its derivative known)."""
+    n = model.n_states
     if method == "exact":
         xs = _march(std.A, ((0, n),), std.B, f0, c, mu, t, held, xs0).real
         notes.append("matrix exponential of the augmented matrix [[A, B, f0], [0, 0, 0]] h")
@@ -183,10 +194,24 @@ def response(model: LinearModel, t: np.ndarray | Sequence[float],
         notes.append(f"modal superposition, {dec.kind} form: {dec.note}")
     x = xs + U @ E.T
     y = xs @ std.C.T + U @ std.D.T
-    if F is not None and signal is not None:
+    if F is not None:
         du = (np.exp(np.outer(t - t[0], mu)) * mu) @ c.T    # u' of the signal's exponentials
         y = y + du.real @ F.T
-    return _result(model, t, x, y, U, method, notes)
+    return x, y
+
+
+def _check_finite(model: LinearModel, t: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
+    """Refuse a response that leaves float64's range (a growing mode over a long horizon):
+    name the first sample time and the fastest growth rate."""
+    bad = ~(np.isfinite(x).all(axis=1) & np.isfinite(y).all(axis=1))
+    if not bad.any():
+        return
+    k = int(np.argmax(bad))
+    lam = np.linalg.eigvals(model.standard_form().A) if not model.dt else None
+    growth = "" if lam is None or not lam.size or lam.real.max() <= 0 else (
+        f"; its fastest mode grows at Re(lam) = {float(lam.real.max()):.4g} 1/s")
+    raise ModelError(f"model '{model.name}': the response leaves float64's range at "
+                     f"t = {t[k]:.6g} s (sample {k}){growth}; end the time span earlier")
 
 
 def _coordinates(std: LinearModel, modes: ModalAnalysis | None) -> ModalCoordinates:
@@ -372,9 +397,11 @@ def _discrete(model: LinearModel, t: np.ndarray, x0: np.ndarray, U: np.ndarray,
     x = np.empty((N, model.n_states))
     x[0] = x0
     BU = U @ model.B.T + f0
-    for k in range(N - 1):
-        x[k + 1] = model.A @ x[k] + BU[k]
-    y = x @ model.C.T + U @ model.D.T
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(N - 1):
+            x[k + 1] = model.A @ x[k] + BU[k]
+        y = x @ model.C.T + U @ model.D.T
+    _check_finite(model, t, x, y)
     notes.append("difference equation x[k+1] = f0 + A x[k] + B u[k]")
     return _result(model, t, x, y, U, "difference", notes)
 

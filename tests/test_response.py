@@ -578,3 +578,31 @@ def test_potential_energy_of_a_stiff_spring_lives_in_its_body():
     column = energy.body_potential_names.index(
         next(n for n in energy.body_potential_names if n != energy.body_potential_names[0]))
     assert energy.body_potential[high, column] > 0.9
+
+
+@pytest.mark.parametrize("method", ["modal", "exact", "discrete"])
+def test_response_beyond_float64_is_refused_not_returned(method):
+    """An unstable model over a long horizon: the inverted box (growth sqrt(m g l / (I + m l^2))
+    = 3.817 1/s, see tests/test_contacts.py) from a 1e-2 tilt passes 1.8e308 near
+    t = ln(1.8e310) / 3.817 = 187 s. Up to 150 s every sample is finite; to 400 s the
+    response is refused naming the first sample that left float64's range."""
+    model = pinlin.linearize("standing_box")
+    if method == "discrete":
+        model = model.discretize(0.01)
+    x0 = np.zeros(model.n_states)
+    x0[0] = 1e-2
+    kind = "modal" if method == "discrete" else method
+    short = pinlin.response(model, np.arange(0.0, 150.0, 0.01), x0=x0, method=kind)
+    assert np.isfinite(short.x).all() and np.abs(short.x).max() > 1e200
+    with pytest.raises(pinlin.ModelError, match=r"leaves float64's range at t = 1[89]\d"):
+        pinlin.response(model, np.arange(0.0, 400.0, 0.01), x0=x0, method=kind)
+
+
+def test_report_response_plot_stops_before_noise_grows(tmp_path):
+    """G1 standing: its first mode is slow (5 periods ~ 10^3 s) and others grow at ~10 1/s:
+    the report's response plot ends before rounding in the growing modes reaches 1e-8 of the
+    shape (before, it overflowed float64 and the report failed)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        path = pinlin.write_html_report("g1_standing", tmp_path / "g1.html", max_modes=2)
+    assert "data:image/png;base64," in path.read_text()
