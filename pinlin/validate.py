@@ -179,7 +179,8 @@ def _eigs_mujoco(ms, system, op, loops: bool) -> tuple[np.ndarray, np.ndarray, n
         A_d = (4.0 * A_1 - A_2) / 3.0
     A_c = recover_continuous(ms, A_d)
     z = np.linalg.eigvals(A_d).astype(complex)
-    return np.linalg.eigvals(A_c), np.log(z) / ms.dt, A_c
+    with np.errstate(divide="ignore", invalid="ignore"):  # z = 0: a soft mode gone in a step
+        return np.linalg.eigvals(A_c), np.log(z) / ms.dt, A_c
 
 
 def _zero_sensitivity(A: np.ndarray, ref: np.ndarray, d_abs: float) -> float:
@@ -271,7 +272,8 @@ def validate(scene, name: str | None = None, *, picture: bool | None = None) -> 
         model = linearize(scene)
     except PinlinError as exc:
         return Validation(name, "pinlin refuses", " ".join(str(exc).split()))
-    effects = system.scene.effects.in_play() + (["loops"] if scene.loops else [])
+    effects = (system.scene.effects.in_play() + (["loops"] if scene.loops else [])
+               + (["contacts"] if system.constraints.contacts else []))
     res = Validation(name, "pass", effects=effects, nv=system.nv)
     modes = modal(model, method="general")
     ref = modes.eigenvalues
@@ -308,6 +310,14 @@ def validate(scene, name: str | None = None, *, picture: bool | None = None) -> 
         status = "MuJoCo refuses" if "refuses" in str(exc) or "cannot import" in str(exc) \
             else ("not expressible" if "counterpart" in str(exc) else "FAIL")
         res.status, res.reason = status, " ".join(str(exc).split())
+        return res
+    if not len(ref):   # nothing moves (e.g. a welded body): every MuJoCo mode is a soft one
+        expected = 2 * system.constraints.size
+        if len(res.set_aside) != expected:
+            res.status, res.reason = "FAIL", (f"pinlin's model has no states; MuJoCo's has "
+                                              f"{len(res.set_aside)} eigenvalues where its "
+                                              f"{system.constraints.size} constraint rows give "
+                                              f"{expected}")
         return res
     # Zero eigenvalues (Jordan blocks) move like sqrt of a perturbation of A, with constants
     # set by the whole model: measure it on pinlin's own A perturbed at the size of the

@@ -39,6 +39,16 @@ def modes_picture_name(name: str) -> str:
     return f"{name}_modes.png"
 
 
+def _held(res) -> bool:
+    """Whether MuJoCo's model holds loops or contacts by soft equalities."""
+    return "loops" in res.effects or "contacts" in res.effects
+
+
+def _worst_ratio(res) -> float:
+    """max error / tolerance over the eigenvalue table (<= 1: every eigenvalue passes)."""
+    return max((row[3] / row[5] for row in res.table if row[5] > 0), default=0.0)
+
+
 def write_report(res, folder: Path, scene=None) -> None:
     """``<name>.md``, ``<name>.png`` (both eigenvalue sets in the complex plane),
     ``<name>_modes.png`` (stick figures of the first :data:`MODE_PICTURE_COUNT` modes,
@@ -70,8 +80,9 @@ def write_report(res, folder: Path, scene=None) -> None:
         f"Reproduce: `pinlin validate {res.name}`.",
         "",
         f"- Effects in play: {', '.join(res.effects) or 'none'}; everything else is off in "
-        "the MuJoCo scene (contacts, joint limits, friction loss, actuator clamps, equalities "
-        "other than the scene's loops and mimic couplings).",
+        "the MuJoCo scene (MuJoCo's own contacts between geoms, joint limits, friction loss, "
+        "actuator clamps, equalities other than the scene's loops, contacts and mimic "
+        "couplings).",
         "- MuJoCo model: " + (
             "MuJoCo's own import of the URDF." if not res.merged else
             "MuJoCo's own import of the URDF, except that MuJoCo refuses the inertia of "
@@ -83,14 +94,16 @@ def write_report(res, folder: Path, scene=None) -> None:
         + " Visual-only geoms (no mass, no contacts) do not change M or g.",
         f"- nv = {res.nv}; MuJoCo Euler, dt = {res.dt:.3g} s; "
         + ("centered transition differences with eps = "
-           f"{EPS_LOOP:g}; loop equalities with time constant 2 dt, impedance 0.9999 and 0.999 "
-           "(extrapolated to 1)" if "loops" in res.effects else
+           f"{EPS_LOOP:g}; loop and contact equalities with time constant 2 dt, impedance "
+           "0.9999 and 0.999 "
+           "(extrapolated to 1)" if _held(res) else
            f"centered transition differences at eps = {EPS_OPEN:g} and {2 * EPS_OPEN:g}, "
            "Richardson-combined") + ".",
         "- Sanity at q0 (relative): " + ", ".join(f"{k} {v:.1e}" for k, v in res.sanity.items()),
         "- Matrix error max |A_mj - A| / max |A|: "
         + (f"{res.matrix_error:.2e} (tolerance {MATRIX_TOL:.0e})" if res.matrix_error is not None
-           else "not compared (loops: MuJoCo's state is the dependent coordinates)"),
+           else "not compared (loops or contacts: MuJoCo's state is the dependent "
+                "coordinates)"),
         "- Moving state (v random in [-1, 1], seed fixed): pinlin's Euler step against "
         "MuJoCo's, max |A_d - A_d,mj| "
         + (f"{res.moving_error[0]:.2e}, B_d relative {res.moving_error[1]:.2e} (tolerance "
@@ -98,8 +111,10 @@ def write_report(res, folder: Path, scene=None) -> None:
            "not compared (a floating base, loops or damping: MuJoCo integrates damping "
            "implicitly)"),
         f"- Largest relative eigenvalue error, non-rigid: {res.eig_error:.2e} (tolerance "
-        f"{EIG_TOL:.0e})" + (f"; raw at d = 0.9999, before extrapolation to d = 1: "
-                             f"{res.eig_error_raw:.2e}" if "loops" in res.effects
+        f"{EIG_TOL:.0e}, or the eigenvalue's condition bound where that is larger; largest "
+        f"error / its tolerance over the table: {_worst_ratio(res):.2f})"
+        + (f"; raw at d = 0.9999, before extrapolation to d = 1: "
+                             f"{res.eig_error_raw:.2e}" if _held(res)
                              or res.eig_error_raw != res.eig_error else ""),
         f"- Rigid and near-rigid modes (|lam| <= {res.rigid_tol:.1e}): largest |lam_mj - lam| "
         f"{res.rigid_error:.1e} (tolerance {res.rigid_tol:.1e})",
@@ -114,6 +129,10 @@ def write_report(res, folder: Path, scene=None) -> None:
         "| tolerance | MuJoCo log(z)/dt (for reference) | kind |",
         "|---|---|---|---|---|---|---|",
     ]
+    if not len(res.pinlin_eigs):
+        lines[-8:] = [f"- pinlin's model has no states (everything is held): MuJoCo's "
+                       f"{len(res.set_aside)} eigenvalues are all soft-constraint modes "
+                       "(2 per constraint row)."]
     for k, (a, b, c, e, kind, tol) in enumerate(res.table, start=1):
         lines.append(f"| {k} | {a.real:+.9g} {a.imag:+.9g}j | {b.real:+.9g} {b.imag:+.9g}j | "
                      f"{e:.1e} | {tol:.1e} | {c.real:+.7g} {c.imag:+.7g}j | {kind} |")

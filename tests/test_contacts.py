@@ -123,6 +123,10 @@ def test_welded_box_has_no_state_and_nothing_breaks(capfd, tmp_path):
     out = capfd.readouterr().out
     assert "contact 'foot': force [0, 0, 19.62] N" in out
     assert pinlin.LinearModel.load(tmp_path / "welded.npz").n_states == 0
+    # MuJoCo with the weld as a stiff equality: its 12 eigenvalues are all soft modes.
+    assert main(["validate", str(path), "--out-dir", str(tmp_path / "v")]) == 0
+    report = (tmp_path / "v" / "welded.md").read_text()
+    assert "**pass**" in report and "no states" in report and "12 eigenvalues" in report
 
 
 def test_contacts_anchor_where_the_configuration_puts_the_frame():
