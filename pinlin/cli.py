@@ -197,7 +197,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 def _cmd_export_mjcf(args: argparse.Namespace) -> int:
     from .files import check_file_target, write_text_atomic
-    from .mjcf import MujocoError, build, check_time_step
+    from .linearization import operating_point
+    from .mjcf import build, check_time_step, to_xml
     from .scene import Scene
 
     dt = check_time_step(args.dt, "--dt")
@@ -212,12 +213,15 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
                                   "another output name")
     ms = build(scene.system, dt=dt)
     try:
-        xml = ms.spec.to_xml()
-    except Exception as exc:  # noqa: BLE001  MuJoCo raises ValueError or RuntimeError
-        raise MujocoError(f"MuJoCo cannot write MJCF for '{scene.name}': {exc}") from None
+        op = operating_point(scene, allow_non_equilibrium=True)
+    except PinlinError:     # the model stands without it: say where to find out why
+        op, key = None, "; no keyframe: pinlin linearize says why the operating point is refused"
+    else:
+        key = "; keyframe 'operating_point' holds q0 and v0"
+    xml = to_xml(ms, scene.system, *((op.q, op.v) if op is not None else ()))
     write_text_atomic(out, xml)
     print(f"MJCF of '{scene.name}' written to {out} (nq = {ms.model.nq}, nv = {ms.model.nv}, "
-          f"{plural(ms.model.neq, 'equality', 'equalities')}, dt = {dt:g} s)")
+          f"{plural(ms.model.neq, 'equality', 'equalities')}, dt = {dt:g} s{key})")
     return 0
 
 

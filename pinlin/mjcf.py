@@ -238,11 +238,9 @@ def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) ->
     for i, loop in enumerate(system.scene.loops):
         sites = []
         for k, frame in enumerate((loop.frame1, loop.frame2)):
-            if frame not in bodies:
-                raise MujocoError(f"loops[{i}].frame{k + 1}: '{frame}' is not a URDF link, so "
-                                  "MuJoCo has no body for it")
             name = f"{loop.name}_site{k + 1}"
-            spec.body(frame).add_site(name=name)
+            body, pos, quat = _frame_on_body(system, frame, bodies, f"loops[{i}].frame{k + 1}")
+            spec.body(body).add_site(name=name, pos=pos, quat=quat)
             sites.append(name)
         eq = spec.add_equality()
         eq.type = (mujoco.mjtEq.mjEQ_CONNECT if loop.type == "point" else mujoco.mjtEq.mjEQ_WELD)
@@ -268,22 +266,17 @@ def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) ->
 def _add_contacts(spec: mujoco.MjSpec, system, bodies: set[str], solref: np.ndarray,
                   solimp: np.ndarray) -> None:
     """Each scene contact as an equality with the world, not a MuJoCo contact: a site
-    ``<name>_site1`` on the contact frame's body (at its origin: a URDF link is a MuJoCo body),
+    ``<name>_site1`` at the contact frame on its body (:func:`_frame_on_body`),
     a site ``<name>_site2`` on the worldbody at the anchor placement
     (:attr:`pinlin.constraints.AnchoredContact.placement`, quaternion in MuJoCo's (w, x, y, z)
     order), joined by ``connect`` (point: the two origins coincide) or ``weld`` (the two
     frames coincide), with the loops' stiff ``solref`` / ``solimp``."""
-    import pinocchio as pin
-
     for i, contact in enumerate(system.constraints.contacts):
-        if contact.frame not in bodies:
-            raise MujocoError(f"contacts[{i}].frame: '{contact.frame}' is not a URDF link, so "
-                              "MuJoCo has no body for it")
         site1, site2 = f"{contact.name}_site1", f"{contact.name}_site2"
-        spec.body(contact.frame).add_site(name=site1)
-        xyzw = pin.Quaternion(np.array(contact.rotation)).coeffs()
+        body, pos, quat = _frame_on_body(system, contact.frame, bodies, f"contacts[{i}].frame")
+        spec.body(body).add_site(name=site1, pos=pos, quat=quat)
         spec.worldbody.add_site(name=site2, pos=np.array(contact.position),
-                                quat=np.array([xyzw[3], xyzw[0], xyzw[1], xyzw[2]]))
+                                quat=_wxyz(contact.rotation))
         eq = spec.add_equality()
         eq.type = (mujoco.mjtEq.mjEQ_CONNECT if contact.type == "point"
                    else mujoco.mjtEq.mjEQ_WELD)
@@ -294,6 +287,93 @@ def _add_contacts(spec: mujoco.MjSpec, system, bodies: set[str], solref: np.ndar
             eq.data[:] = 0.0
             eq.data[6] = 1.0     # relative orientation (w, x, y, z): identity
             eq.data[10] = 1.0    # torque scale
+
+
+def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray | None = None,
+           key: str = "operating_point") -> str:
+    """The MJCF text of ``ms``; with ``q`` (and ``v``), a keyframe ``key`` holding pinlin's
+    (q, v) in MuJoCo's coordinates at full precision (MuJoCo's writer keeps 6 digits, which
+    opens a held foot by ~1e-6 m): ``mj_resetDataKeyframe`` starts MuJoCo there. Generalized
+    forces have no keyframe field: inputs that hold the posture still need applying.
+
+    Raises:
+        MujocoError: MuJoCo cannot write the model.
+    """
+    if q is not None:
+        v = np.zeros(system.nv) if v is None else v
+        set_state(ms, system, q, v, np.zeros(system.nv))
+        qpos, qvel = ms.data.qpos.copy(), ms.data.qvel.copy()
+        ms.spec.add_key(name=key, qpos=qpos, qvel=qvel)
+    try:
+        xml = ms.spec.to_xml()
+    except Exception as exc:  # noqa: BLE001  MuJoCo raises ValueError or RuntimeError
+        raise MujocoError(f"MuJoCo cannot write MJCF for '{system.scene.name}': {exc}") from None
+    m = ms.model
+    for i in range(m.nsite):     # the sites pinlin placed: loop and contact anchors
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i)
+        xml = _exact_attributes(xml, f'<site name="{name}"',
+                                {"pos": m.site_pos[i], "quat": m.site_quat[i]})
+    if q is not None:
+        xml = _exact_attributes(xml, f'<key name="{key}"', {"qpos": qpos, "qvel": qvel})
+    return xml
+
+
+def _exact_attributes(xml: str, head: str, values: dict[str, np.ndarray]) -> str:
+    """``xml`` with the listed attributes of the element starting with ``head`` written at
+    full precision (repr of each float64); attributes the element does not carry stay
+    absent (MuJoCo left them at their defaults)."""
+    import re
+
+    start = xml.find(head)
+    if start < 0:
+        return xml
+    end = xml.index(">", start)
+
+    def full(match: re.Match) -> str:
+        numbers = " ".join(repr(float(x)) for x in values[match.group(1)])
+        return f'{match.group(1)}="{numbers}"'
+
+    keys = "|".join(values)
+    element = re.sub(rf'\b({keys})="[^"]*"', full, xml[start:end])
+    return xml[:start] + element + xml[end:]
+
+
+def _wxyz(rotation: np.ndarray) -> np.ndarray:
+    """A rotation matrix as MuJoCo's quaternion (w, x, y, z)."""
+    import pinocchio as pin
+
+    x, y, z, w = pin.Quaternion(np.array(rotation)).coeffs()
+    return np.array([w, x, y, z])
+
+
+def _frame_on_body(system, frame: str, bodies: set[str], fld: str
+                   ) -> tuple[str, np.ndarray, np.ndarray]:
+    """(MuJoCo body, site position, site quaternion (w, x, y, z)) of a Pinocchio frame: a URDF
+    link is a MuJoCo body of its own name (fusestatic off; its frame is the link frame); any
+    other frame (a joint's, a fixed joint's) sits on a link moved by the same joint, at
+    their relative placement.
+
+    Raises:
+        MujocoError: no MuJoCo body moves with the frame (naming ``fld``).
+    """
+    import pinocchio as pin
+
+    kin = system.kin_model
+    if frame in bodies:
+        fid = kin.getFrameId(frame, pin.FrameType.BODY)
+        if fid < len(kin.frames):
+            return frame, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+    fid = kin.getFrameId(frame)
+    if fid >= len(kin.frames):
+        raise MujocoError(f"{fld}: '{frame}' is not a frame of the model")
+    target = kin.frames[fid]
+    for f in kin.frames:
+        if (f.type == pin.FrameType.BODY and f.parentJoint == target.parentJoint
+                and f.name in bodies):
+            rel = f.placement.inverse() * target.placement
+            return f.name, rel.translation.copy(), _wxyz(rel.rotation)
+    raise MujocoError(f"{fld}: no MuJoCo body moves with frame '{frame}' (no URDF link on its "
+                      "joint survived MuJoCo's import)")
 
 
 def set_state(ms: MujocoScene, system, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> None:

@@ -441,7 +441,17 @@ def _mujoco_rows(ms, system, q, tau):
     return d.efc_pos[:d.nefc].copy(), jac, d.qfrc_bias - d.qfrc_applied
 
 
-@pytest.mark.parametrize("name", ["standing_box", "solo12_standing", "talos_standing"])
+def _frames_scene(name: str) -> pinlin.Scene:
+    """A bundled standing scene, or the box held at frames that are no URDF link: a fixed
+    joint's frame (at the bottom face) and a joint's frame (the free flyer's, at the centre)."""
+    if name == "box_joint_frames":
+        return _box([{"name": "tip", "frame": "bottom_fixed"},
+                     {"name": "centre", "frame": "root_joint"}])
+    return _scene(name)
+
+
+@pytest.mark.parametrize("name", ["standing_box", "solo12_standing", "talos_standing",
+                                  "box_joint_frames"])
 def test_exported_contacts_hold_the_frames_where_pinlin_anchors_them(name):
     """One connect (point) or weld equality per contact, from a site on the frame's body to a
     world site at the anchor: at a configuration away from q0 MuJoCo's residual equals
@@ -451,7 +461,7 @@ def test_exported_contacts_hold_the_frames_where_pinlin_anchors_them(name):
     rounding of O(1) numbers: 1e-12)."""
     from pinlin import mjcf
 
-    scene = _scene(name)
+    scene = _frames_scene(name)
     system = scene.system
     q0 = pinlin.operating_point(scene).q
     ms = mjcf.build(system, dt=1e-4)
