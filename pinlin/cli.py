@@ -205,12 +205,12 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix != ".xml":
         raise ModelFileError(out, "expected an .xml file for MJCF")
-    check_file_target(out)
     scene = Scene.resolve(args.target)
     inputs = {Path(p).resolve() for p in (scene.source, scene.system.urdf_path) if p}
     if out.resolve() in inputs:
         raise ModelFileError(out, "is an input of the scene (its scene file or URDF); choose "
                                   "another output name")
+    check_file_target(out)
     ms = build(scene.system, dt=dt)
     try:
         op = operating_point(scene, allow_non_equilibrium=True)

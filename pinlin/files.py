@@ -49,18 +49,53 @@ def _follow_link(path: Path) -> Path:
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
+#: How the files pinlin writes begin, by suffix: an existing non-empty file at an output
+#: path is replaced only if it begins so (an earlier result), never a file of another kind
+#: (a user's notes named report.html, a link to a system file).
+SIGNATURES: dict[str, tuple[bytes, ...]] = {
+    ".html": (b"<!DOCTYPE html>",),
+    ".png": (b"\x89PNG",),
+    ".gif": (b"GIF87a", b"GIF89a"),
+    ".xml": (b"<mujoco",),
+    ".npz": (b"PK\x03\x04", b"PK\x05\x06"),
+    ".mat": (b"MATLAB",),
+    ".json": (b"{",),
+    ".csv": (b"t,",),
+}
+
+
+def check_replaceable(path: Path, target: Path) -> None:
+    """Refuse to replace an existing non-empty ``target`` (``path``, links followed) that does
+    not begin as the files pinlin writes with its suffix begin (:data:`SIGNATURES`)."""
+    heads = SIGNATURES.get(path.suffix.lower())      # the kind the caller writes
+    if heads is None or not target.is_file():
+        return
+    try:
+        with target.open("rb") as fh:
+            start = fh.read(max(len(h) for h in heads))
+    except OSError as exc:
+        raise ModelFileError(path, f"cannot read it: {exc.strerror or exc}") from None
+    if start and not any(start.startswith(h) for h in heads):
+        where = f" (a link to '{target}')" if target != path else ""
+        raise ModelFileError(path, f"exists{where} and is not a {path.suffix} file of the "
+                                   "kind pinlin writes; pinlin does not replace it: move it "
+                                   "or choose another name")
+
+
 def check_file_target(path: str | Path, what: str = "write") -> Path:
     """Refuse a file path that cannot be written, before any work; returns it as a Path.
 
     Raises:
         ArgumentError: ``path`` is not a path.
-        ModelFileError: it names a folder, its folder does not exist, or a component of its
-            folder is a file.
+        ModelFileError: it names a folder, its folder does not exist, a component of its
+            folder is a file, or it is an existing file of another kind
+            (:func:`check_replaceable`).
     """
     path = as_path(path)
     target = _follow_link(path)
     if target.is_dir():
         raise ModelFileError(path, f"cannot {what}: it is a folder, expected a file name")
+    check_replaceable(path, target)
     folder = _folder_of(target)
     if not folder.is_dir():
         blocker = _existing_non_folder(folder)

@@ -473,12 +473,12 @@ def test_exception_while_serializing_leaves_no_trace(tmp_path):
 
 def test_unserializable_info_is_a_model_file_error_and_writes_nothing(tmp_path):
     out = tmp_path / "m.json"
-    out.write_text("old")
+    out.write_text('{"old": true}')  # an earlier model file: replaceable, so the info fails
     model = dataclasses.replace(tiny(), info={"callback": object()})
     for suffix in FORMATS:
         with pytest.raises(ModelFileError, match="cannot save: the model's info"):
             model.save(out.with_suffix(suffix))
-    assert out.read_text() == "old" and sorted(os.listdir(tmp_path)) == ["m.json"]
+    assert out.read_text() == '{"old": true}' and sorted(os.listdir(tmp_path)) == ["m.json"]
 
 
 def test_atomic_write_keeps_mode_and_follows_a_symlink(tmp_path):
@@ -646,3 +646,34 @@ def test_report_names_stay_inside_the_output_folder():
     for f in (report_name, report_label):
         assert f("../../etc/x.urdf") == "x" and f("/abs/path/scene.toml") == "scene"
         assert f("ur5") == "ur5"
+
+
+@pytest.mark.parametrize("args", [
+    ("report", "double_pendulum", "-o", "{out}.html"),
+    ("export-mjcf", "double_pendulum", "-o", "{out}.xml"),
+    ("modes", "double_pendulum", "--plot", "{out}.png"),
+    ("modes", "double_pendulum", "--gif", "{out}.gif"),
+    ("linearize", "double_pendulum", "--out", "{out}.npz"),
+    ("linearize", "double_pendulum", "--out", "{out}.json"),
+], ids=["report", "mjcf", "png", "gif", "npz", "json"])
+@pytest.mark.parametrize("how", ["file", "link"])
+def test_outputs_never_replace_a_file_of_another_kind(args, how, capfd, tmp_path):
+    """A user's notes at an output name, or a link there to some other file, are refused
+    before any work and left untouched; an earlier result of the same kind is replaced."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    argv = [a.format(out=tmp_path / "out") for a in args]
+    target = Path(argv[-1])
+    if how == "file":
+        target.write_text("my notes\n")
+    else:
+        target.symlink_to(notes)
+    before = snapshot(tmp_path)
+    code, _, err = cli(capfd, *argv)
+    assert_refused(code, err, target.name, "pinlin does not replace it")
+    assert snapshot(tmp_path) == before
+    target.unlink()
+    for _ in range(2):       # written, then its own earlier result replaced
+        code, _, err = cli(capfd, *argv)
+        assert code == 0, err
+    no_temporaries(tmp_path)
