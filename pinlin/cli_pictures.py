@@ -38,27 +38,37 @@ def _chosen(modes, numbers: list[int] | None) -> list[int] | None:
 
 def _cmd_modes(args: argparse.Namespace) -> int:
     from .cli_format import print_operating_point
-    from .mode_pictures import animate_modes, check_target, plot_modes
+    from .mode_pictures import animate_modes, check_target, default_modes, plot_modes
+    from .stick_figure import MAX_AMPLITUDE
 
     png = check_target(args.plot, ".png", "--plot") if args.plot else None
     gif = check_target(args.gif, ".gif", "--gif") if args.gif else None
-    if args.amplitude is not None and not (0 < args.amplitude < float("inf")):
-        raise ArgumentError("--amplitude", f"expected an amplitude > 0 [rad or m], got "
+    if args.amplitude is not None and not (0 < args.amplitude <= MAX_AMPLITUDE):
+        raise ArgumentError("--amplitude", f"expected an amplitude > 0 and <= "
+                                           f"{MAX_AMPLITUDE:g} [rad or m], got "
                                            f"{args.amplitude:g}")
     if args.mode is not None and png is None and gif is None:
         raise ArgumentError("--mode", "chooses the modes to draw: give --plot FILE.png or "
                                       "--gif FILE.gif as well")
+    if args.mode is not None and len(set(args.mode)) != len(args.mode):
+        raise ArgumentError("--mode", f"names a mode twice: {' '.join(map(str, args.mode))}")
     scene, model, modes = _linearize(args)
     indices = _chosen(modes, args.mode)
+    if (png or gif) and indices is None and not default_modes(modes):
+        raise ArgumentError("--plot" if png else "--gif",
+                            f"model '{model.name}' has no mode to draw (no states)")
+    written = []     # the files first: a failure prints one line, not the table before it
+    if png is not None:
+        plot_modes(scene, modes, png, indices, amplitude=args.amplitude)
+        written.append(f"mode picture written to {png}")
+    if gif is not None:
+        animate_modes(scene, modes, gif, indices, amplitude=args.amplitude)
+        written.append(f"mode animation written to {gif}")
     print_operating_point(model, scene.system)
     print()
     print(modes)
-    if png is not None:
-        plot_modes(scene, modes, png, indices, amplitude=args.amplitude)
-        print(f"\nmode picture written to {png}")
-    if gif is not None:
-        animate_modes(scene, modes, gif, indices, amplitude=args.amplitude)
-        print(f"{'' if png else chr(10)}mode animation written to {gif}")
+    if written:
+        print("\n" + "\n".join(written))
     return 0
 
 

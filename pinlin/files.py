@@ -54,6 +54,7 @@ def _follow_link(path: Path) -> Path:
 #: (a user's notes named report.html, a link to a system file).
 SIGNATURES: dict[str, tuple[bytes, ...]] = {
     ".html": (b"<!DOCTYPE html>",),
+    ".htm": (b"<!DOCTYPE html>",),
     ".png": (b"\x89PNG",),
     ".gif": (b"GIF87a", b"GIF89a"),
     ".xml": (b"<mujoco",),

@@ -357,6 +357,8 @@ def check_report_target(path: object, argument: str = "path") -> Path:
         ModelFileError: another suffix, a folder, or a folder that does not exist.
     """
     path = as_path(path, argument)
+    if path.is_dir():
+        raise ModelFileError(path, "is a folder; expected an .html file name")
     if path.suffix.lower() not in (".html", ".htm"):
         raise ModelFileError(path, f"expected an .html file for the report, got "
                                    f"'{path.suffix or 'no suffix'}'")

@@ -47,7 +47,21 @@ def default_modes(modes: ModalAnalysis, count: int = DEFAULT_COUNT) -> list[int]
     moving = [i for i in keep if modes.kind(i) not in ("rigid", "constraint")]
     if not moving:
         moving = [i for i in keep if modes.kind(i) != "constraint"]
-    return moving[:count]
+    drawn: list[int] = []
+    for i in moving:      # +-sigma of an unstable pair move alike: draw the shape once
+        if not any(_mirrored(modes, i, j) for j in drawn):
+            drawn.append(i)
+    return drawn[:count]
+
+
+def _mirrored(modes: ModalAnalysis, i: int, j: int) -> bool:
+    """Whether real eigenvalues i and j are +-sigma with the same shape (to rounding)."""
+    a, b = modes.eigenvalues[i], modes.eigenvalues[j]
+    if a.imag or b.imag or abs(a + b) > 1e-9 * max(abs(a), abs(b)):
+        return False
+    si, sj = modes.shapes[:, i], modes.shapes[:, j]
+    return bool(np.allclose(si, sj, rtol=0, atol=1e-9) or np.allclose(si, -sj, rtol=0,
+                                                                      atol=1e-9))
 
 
 def _indices(modes: ModalAnalysis, indices: Sequence[int] | int | None) -> list[int]:
@@ -308,6 +322,8 @@ def check_target(path: object, suffix: str, option: str = "path") -> Path:
         ModelFileError: another suffix, a folder, or a folder that does not exist.
     """
     path = as_path(path, option)
+    if path.is_dir():
+        raise ModelFileError(path, f"is a folder; expected a {suffix} file name")
     if path.suffix.lower() != suffix:
         kind = "picture" if suffix == ".png" else "animation"
         raise ModelFileError(path, f"expected a {suffix} file for the mode {kind}, got "

@@ -52,6 +52,9 @@ from .modal import ModalAnalysis
 READABLE = 0.15
 #: ... and never moves the largest coordinate by more than this [rad or m].
 MAX_EXCURSION = 0.5
+#: A given amplitude is refused above this [rad or m]: far beyond any drawable excursion
+#: (a few rad turns a joint round; a robot's figure is metres), and float64's range is kept.
+MAX_AMPLITUDE = 1e3
 #: Body-frame axes are drawn (and count as moving points) at this fraction of the figure size.
 AXIS_LENGTH = 0.08
 #: At most this many joint frames are drawn where a mode turns links about their own axes.
@@ -78,10 +81,13 @@ class StickFigure:
         points: Point positions in the world frame (P, 3) [m].
         rotations: Orientation of each point's frame in the world (P, 3, 3): ``oMi`` of a
             joint, ``oMf`` of a frame, the identity for the world origin.
-        names: Joint or frame name of each point (``"universe"`` for the world origin).
-        kinds: ``"world"``, ``"joint"`` or ``"frame"`` per point.
+        names: Joint or frame name of each point (``"universe"`` for the world origin,
+            ``"anchor:<contact>"`` for where a contact holds its frame).
+        kinds: ``"world"`` (the world origin, a contact's anchor), ``"joint"`` or ``"frame"``
+            per point.
         links: Index pairs (L, 2) of the points each link joins.
-        closures: Index pairs (C, 2) of the two frames of each loop, in scene order.
+        closures: Index pairs (C, 2) of the two frames of each loop, then of each contact's
+            frame and its anchor, in scene order.
     """
 
     q: np.ndarray
@@ -102,7 +108,8 @@ class StickFigure:
 
     @property
     def gaps(self) -> np.ndarray:
-        """Distance between the two frames of each loop (C,) [m]: 0 when closed."""
+        """Distance between the two points of each closure (C,) [m]: 0 when a loop is closed
+        and a contact holds its frame at its anchor."""
         if not len(self.closures):
             return np.zeros(0)
         a, b = self.closures[:, 0], self.closures[:, 1]
@@ -165,6 +172,13 @@ class Skeleton:
                 if fid not in frames:
                     frames.append(fid)
             loop_frames.append(pair)
+        # Contacts: the frame, and its anchor in the world (drawn as the world origin is).
+        self._anchors: list[pin.SE3] = []
+        for contact in system.constraints.contacts:
+            fid = model.getFrameId(contact.frame)
+            if fid not in frames:
+                frames.append(fid)
+            self._anchors.append(contact.placement)
         index_of_frame: dict[int, int] = {}
         for fid in frames:
             parent = model.frames[fid].parentJoint
@@ -176,12 +190,17 @@ class Skeleton:
             entries.append(("frame", fid))
             names.append(model.frames[fid].name)
             links.append((index_of_joint[parent], index_of_frame[fid]))
+        anchored = []
+        for k, contact in enumerate(system.constraints.contacts):
+            anchored.append([index_of_frame[model.getFrameId(contact.frame)], len(entries)])
+            entries.append(("anchor", k))
+            names.append(f"anchor:{contact.name}")
         self.names = tuple(names)
-        self.kinds = tuple(kind for kind, _ in entries)
+        self.kinds = tuple("world" if kind == "anchor" else kind for kind, _ in entries)
         self._entries = entries
         self.links = np.array(links, dtype=int).reshape(-1, 2)
         self.closures = np.array([[index_of_frame[a], index_of_frame[b]]
-                                  for a, b in loop_frames], dtype=int).reshape(-1, 2)
+                                  for a, b in loop_frames] + anchored, dtype=int).reshape(-1, 2)
         for arr in (self.links, self.closures):
             arr.flags.writeable = False
 
@@ -215,6 +234,7 @@ class Skeleton:
         rotations = np.zeros((len(self._entries), 3, 3))
         for k, (kind, ident) in enumerate(self._entries):
             placement = (pin.SE3.Identity() if kind == "world" else
+                         self._anchors[ident] if kind == "anchor" else
                          data.oMi[ident] if kind == "joint" else data.oMf[ident])
             points[k] = placement.translation
             rotations[k] = placement.rotation
@@ -423,8 +443,9 @@ def mode_motion(scene: object, modes: ModalAnalysis, index: int, *,
     independent = _independent(system, model, q0)
     if amplitude is not None:
         if isinstance(amplitude, bool) or not isinstance(amplitude, int | float | np.floating) \
-                or not (np.isfinite(amplitude) and amplitude > 0):
-            raise ArgumentError("amplitude", f"expected a finite amplitude > 0 [rad or m], got "
+                or not (np.isfinite(amplitude) and 0 < amplitude <= MAX_AMPLITUDE):
+            raise ArgumentError("amplitude", f"expected an amplitude > 0 and <= "
+                                             f"{MAX_AMPLITUDE:g} [rad or m], got "
                                              f"{amplitude!r:.40}")
         tries = [float(amplitude)]
     else:
@@ -436,9 +457,12 @@ def mode_motion(scene: object, modes: ModalAnalysis, index: int, *,
             configurations = np.array([_configuration(system, q0, d, independent)
                                        for d in deviations])
             break
-        except AssemblyError:
+        except AssemblyError as exc:
             if k == len(tries) - 1:
-                raise
+                raise AssemblyError(
+                    f"mode {modes.modes().index(i) + 1} of '{modes.model.name}': the loops or "
+                    f"contacts cannot be closed at amplitude a = {a:.4g} [rad or m] along it; "
+                    "choose a smaller amplitude", exc.residual, exc.names) from None
     figures = tuple(skeleton.figure(q) for q in configurations)
     for arr in (theta, deviations, configurations):
         arr.flags.writeable = False

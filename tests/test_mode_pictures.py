@@ -252,6 +252,9 @@ def test_cli_modes_writes_the_picture(tmp_path, capsys):
     (["--gif", "{tmp}/m.png"], "m.png: expected a .gif file for the mode animation"),
     (["--mode", "1"], "argument '--mode': chooses the modes to draw: give --plot"),
     (["--plot", "{tmp}/m.png", "--amplitude", "-0.1"], "expected an amplitude > 0"),
+    (["--plot", "{tmp}/m.png", "--amplitude", "1e300"], "expected an amplitude > 0 and <= 1000"),
+    (["--plot", "{tmp}/m.png", "--mode", "1", "1"], "argument '--mode': names a mode twice"),
+    (["--plot", "{tmp}"], "is a folder; expected a .png file name"),
     (["--plot", "{tmp}/no/such/m.png"], "does not exist"),
     (["--plot", "{tmp}/m.png", "--mode", "x"], "invalid int value"),
 ])
@@ -261,6 +264,47 @@ def test_cli_modes_bad_options_one_line_exit_2(tmp_path, capsys, args, message):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err and "Traceback" not in err
     assert not list(tmp_path.iterdir())  # nothing written
+
+
+@pytest.mark.parametrize("name", ["standing_box", "solo12_standing"])
+def test_standing_figure_keeps_its_feet_on_their_anchors(name):
+    """Contacts are drawn: each contact frame (Pinocchio's oMf at the drawn configuration) and
+    its anchor (the frame's oMf at q0, a world mark) coincide at every phase of every drawn
+    mode, to the assembly's 1e-9, while the rest of the figure moves; the default modes draw
+    each +-sigma pair of an unstable tilt once."""
+    scene, model, modes = _analysis(name)
+    pm = scene.system.model
+    q0 = model.operating_point.q
+    at_q0 = _placements(pm, q0)
+    chosen = default_modes(modes)
+    lam = modes.eigenvalues[chosen]
+    assert len(set(np.round(np.abs(lam), 9))) == len(chosen)  # no mirrored duplicate
+    for i in chosen:
+        motion = mode_motion(scene, modes, i)
+        for q, fig in zip(motion.configurations, motion.figures, strict=True):
+            data = _placements(pm, q)
+            moved = 0.0
+            for contact in scene.system.constraints.contacts:
+                fid = pm.getFrameId(contact.frame)
+                anchor = fig.point(f"anchor:{contact.name}")
+                np.testing.assert_allclose(anchor, at_q0.oMf[fid].translation, rtol=0,
+                                           atol=1e-12)
+                np.testing.assert_allclose(fig.point(contact.frame), data.oMf[fid].translation,
+                                           rtol=0, atol=1e-12)
+                assert np.linalg.norm(data.oMf[fid].translation - anchor) <= 1e-9
+            for j in range(1, pm.njoints):
+                moved = max(moved, np.linalg.norm(data.oMi[j].translation
+                                                  - at_q0.oMi[j].translation))
+            assert moved > 1e-3
+            assert fig.gaps.max() <= 1e-9
+
+
+def test_amplitude_beyond_what_closes_names_the_amplitude():
+    scene, model, modes = _analysis("solo12_standing")
+    with pytest.raises(pinlin.AssemblyError, match="at amplitude a = 20 .*smaller amplitude"):
+        mode_motion(scene, modes, default_modes(modes)[0], amplitude=20.0)
+    with pytest.raises(pinlin.ArgumentError, match="<= 1000"):
+        mode_motion(scene, modes, default_modes(modes)[0], amplitude=1e300)
 
 
 # --------------------------------------------------------------------------------------------
