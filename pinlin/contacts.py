@@ -95,10 +95,12 @@ def statics_notes(system, lam: np.ndarray, scale: float) -> list[str]:
     mass = float(pin.computeTotalMass(system.model))
     weight = mass * float(np.linalg.norm(system.model.gravity.linear))
     vertical = float(sum(f for f, _ in forces.values()) @ up)
-    carrier = ("against the weight" if system.base_joint is not None else
-               "(the fixed base carries the rest of the weight)")
+    total = (f"the weight m g = {weight:.6g} N (m = {mass:.6g} kg)" if weight > 0.0 else
+             "no weight (no gravity)")
+    carrier = (f"against {total}" if system.base_joint is not None else
+               f"of {total}; the fixed base carries the rest")
     notes = [f"contact forces (world frame, on the robot): total vertical {vertical:.6g} N "
-             f"{carrier} m g = {weight:.6g} N (m = {mass:.6g} kg)"]
+             f"{carrier}"]
     tol = 1e-9 * max(1.0, scale, float(np.abs(lam).max(initial=0.0)))
     for contact in cons.contacts:
         force, torque = forces[contact.name]

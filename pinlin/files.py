@@ -174,7 +174,7 @@ def check_ours(path: str | Path, marker: str | bytes) -> None:
     if start != head:
         shown = marker if isinstance(marker, str) else marker.decode("latin-1").strip("\x89")
         raise ModelFileError(path, f"exists and was not written by pinlin (it does not start "
-                                   f"with '{shown}'); pinlin does not overwrite it: move it "
+                                   f"with \"{shown}\"); pinlin does not overwrite it: move it "
                                    "or choose another folder")
 
 

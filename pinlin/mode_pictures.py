@@ -37,6 +37,9 @@ GIF_FRAMES = 24
 GIF_FRAME_MS = 60
 PANEL_SIZE = 3.4  # [inch]
 REST_COLOR = "0.6"
+#: Resolutions a picture may be drawn at [dots per inch] (a 9-inch figure at 600 dpi is
+#: already 5400 pixels wide, ~100 MB while drawn).
+DPI_MIN, DPI_MAX = 10, 600
 #: Colours of the phases of a complex mode (matplotlib's C0, C1, C2, C3, C4, C6).
 PHASE_COLORS = ("C0", "C1", "C2", "C3", "C4", "C6")
 
@@ -70,10 +73,26 @@ def _indices(modes: ModalAnalysis, indices: Sequence[int] | int | None) -> list[
         if not chosen:
             raise ArgumentError("indices", f"model '{modes.model.name}' has no mode to draw")
         return chosen
-    items = [indices] if isinstance(indices, int | np.integer) else list(indices)
+    try:
+        items = [indices] if isinstance(indices, int | np.integer) else list(indices)
+    except TypeError:
+        items = [indices]
     if not items:
         raise ArgumentError("indices", "expected one or more eigenvalue indices, got none")
-    return items
+    for item in items:
+        if isinstance(item, bool) or not isinstance(item, int | np.integer):
+            raise ArgumentError("indices", f"expected eigenvalue indices (int), got "
+                                           f"{item!r:.40}")
+    return [int(k) for k in items]
+
+
+def _check_dpi(dpi: object) -> float:
+    """``dpi`` [dots per inch] within [DPI_MIN, DPI_MAX]."""
+    if isinstance(dpi, bool) or not isinstance(dpi, int | float | np.integer | np.floating) \
+            or not DPI_MIN <= dpi <= DPI_MAX:
+        raise ArgumentError("dpi", f"expected a resolution from {DPI_MIN} to {DPI_MAX} dots per "
+                                   f"inch, got {dpi!r:.40}")
+    return float(dpi)
 
 
 def unit_of(system, modes: ModalAnalysis, motion: ModeMotion) -> tuple[str, str]:
@@ -211,6 +230,9 @@ def _motions(scene, modes: ModalAnalysis, indices, amplitude, phases=None
              ) -> list[ModeMotion]:
     from .linearization import _system
 
+    if not isinstance(modes, ModalAnalysis):
+        raise ArgumentError("modes", f"expected a pinlin.modal(...) result, got "
+                                     f"{type(modes).__name__}")
     system = _system(scene)
     skeleton = Skeleton(system)
     return [mode_motion(system, modes, i, amplitude=amplitude, phases=phases,
@@ -234,6 +256,7 @@ def picture(scene, modes: ModalAnalysis, indices: Sequence[int] | int | None = N
     """
     from .linearization import _system
 
+    dpi = _check_dpi(dpi)
     system = _system(scene)
     motions = _motions(system, modes, indices, amplitude)
     fig, axes = _grid(len(motions))
@@ -270,6 +293,7 @@ def animation(scene, modes: ModalAnalysis, indices: Sequence[int] | int | None =
 
     if isinstance(frames, bool) or not isinstance(frames, int) or not 2 <= frames <= 360:
         raise ArgumentError("frames", f"expected 2 to 360 frames per cycle, got {frames!r}")
+    dpi = _check_dpi(dpi)
     system = _system(scene)
     phases = np.arange(frames) * 2 * np.pi / frames
     motions = _motions(system, modes, indices, amplitude, phases)

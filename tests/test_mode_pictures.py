@@ -230,6 +230,14 @@ def test_bad_arguments():
         mode_motion("ur5_arm", modes, 0)
     with pytest.raises(pinlin.ModelFileError, match="expected a .png file"):
         plot_modes(scene, modes, "modes.jpg")
+    for indices in (1.0, [0, "1"], True):
+        with pytest.raises(pinlin.ArgumentError, match="indices"):
+            picture(scene, modes, indices)
+    for dpi in (0, 1e6, float("nan"), "90"):
+        with pytest.raises(pinlin.ArgumentError, match="dpi"):
+            picture(scene, modes, dpi=dpi)
+    with pytest.raises(pinlin.ArgumentError, match="modes"):
+        picture(scene, model)
 
 
 # --------------------------------------------------------------------------------------------
