@@ -95,6 +95,23 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/urdf_io.py", "    if complaints:\n        raise UrdfError",
         "    if False:\n        raise UrdfError",
         "urdfdom's complaints on stderr ignored (the backstop behind the XML checks)"),
+    "mjcf_contacts_dropped": (
+        "pinlin/mjcf.py", "    _add_contacts(spec, system, bodies, solref, solimp)\n", "",
+        "MuJoCo export forgets the scene's contacts (a standing robot falls freely)"),
+    "contact_site_at_link_origin": (
+        "pinlin/mjcf.py", "            return f.name, rel.translation.copy(), _wxyz(rel.rotation)",
+        "            return f.name, np.zeros(3), _wxyz(rel.rotation)",
+        "a contact or loop at a joint's frame exported at its link's origin"),
+    "response_nonfinite_returned": (
+        "pinlin/response.py", "    _check_finite(model, t, x, y)\n    return _result",
+        "    return _result", "a response beyond float64's range returned with inf/NaN"),
+    "outputs_replace_any_file": (
+        "pinlin/files.py", "    check_replaceable(path, target)\n", "",
+        "an output replaces whatever file (or link target) has its name"),
+    "figure_anchors_at_origin": (
+        "pinlin/stick_figure.py", "self._anchors[ident] if kind == \"anchor\" else",
+        "pin.SE3.Identity() if kind == \"anchor\" else",
+        "mode pictures draw every contact anchor at the world origin"),
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),
