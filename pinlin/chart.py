@@ -38,14 +38,14 @@ def _skew(w: np.ndarray) -> np.ndarray:
 def kinematic_block(system, v0: np.ndarray) -> np.ndarray | None:
     """d(d(dq)/dt)/d(dq) at (dq = 0, v0) (nv x nv), or None when it is zero (v0 = 0, or no
     Lie-group joint moves)."""
-    if not np.any(v0):
+    if not np.count_nonzero(v0):  # (np.any costs ~5x more on a small vector)
         return None
     block = None
     for j in system.joints.values():
         if j.kind not in (FREE_FLYER, SPHERICAL, PLANAR):
             continue
         vj = v0[j.idx_v:j.idx_v + j.nv]
-        if not np.any(vj):
+        if not np.count_nonzero(vj):
             continue
         if block is None:
             block = np.zeros((system.nv, system.nv))

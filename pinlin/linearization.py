@@ -45,6 +45,7 @@ from .operating_point import (
     velocity_vector,
 )
 from .options import (
+    Analytic,
     Canonical,
     Derivatives,
     Formulation,
@@ -58,6 +59,10 @@ from .system import System
 #: A numerical model whose estimated relative error of A exceeds this gets an AccuracyWarning
 #: (fewer than ~6 significant digits, the level at which a condition estimate warns too).
 WARN_ERROR_ESTIMATE = 1e-6
+#: What ``formulation="independent", derivatives="analytic"`` (the defaults) stand for: option
+#: objects are frozen, so one instance serves every call.
+_INDEPENDENT = Independent()
+_ANALYTIC = Analytic()
 
 
 def _system(scene: object) -> System:
@@ -264,8 +269,14 @@ def linearize(scene: Scene | System | str | Path, *,
             ``allow_ill_conditioned`` (the message names the motion and bodies responsible).
         PinlinError: any other bad input (scene, URDF, operating point), by subclass.
     """
-    form = formulation_from(formulation, basis, alpha, mu, omega)
-    deriv = derivatives_from(derivatives, step, estimate_error)
+    if (type(formulation) is str and formulation == "independent"
+            and type(derivatives) is str and derivatives == "analytic" and step is None
+            and basis is None and alpha is None and mu is None and omega is None
+            and estimate_error is True):  # the defaults: the objects they make, made once
+        form, deriv = _INDEPENDENT, _ANALYTIC
+    else:
+        form = formulation_from(formulation, basis, alpha, mu, omega)
+        deriv = derivatives_from(derivatives, step, estimate_error)
     allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
     ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     system = _system(scene)

@@ -4,11 +4,12 @@ Two solvers:
 
 - **symmetric**: when the model has no velocity-dependent terms (C_damp = 0) and a symmetric
   stiffness, the 2n eigenvalues of A are +-sqrt(-w2) for the n eigenvalues w2 of the symmetric
-  definite pencil (K, M) (LAPACK ``dsygvd``, as ``scipy.linalg.eigh(K, M, driver="gvd")``:
-  mass-normalized shapes phi). Right and left eigenvectors of A follow in closed form:
-  r = [phi; lam phi], l = [M phi / 2; M phi / (2 lam)*] with l^H r = 1. A zero w2 (rigid-body
-  mode) is a 2x2 Jordan block of A: its pair of vectors is the chain [phi; 0], [0; phi] with
-  left vectors [M phi; 0], [0; M phi].
+  definite pencil (K, M) (LAPACK ``dsygvd``, as ``scipy.linalg.eigh(K, M, driver="gvd")``,
+  without vectors; the mass-normalized shapes phi are computed on first access by a second
+  ``dsygvd`` with vectors, which costs about twice the first). Right and left eigenvectors
+  of A follow in closed form: r = [phi; lam phi], l = [M phi / 2; M phi / (2 lam)*] with
+  l^H r = 1. A zero w2 (rigid-body mode) is a 2x2 Jordan block of A: its pair of vectors is
+  the chain [phi; 0], [0; phi] with left vectors [M phi; 0], [0; M phi].
 - **general**: LAPACK ``dgeev`` of A (size 2n) with right vectors only, as
   ``scipy.linalg.eig(A)`` computes them (the same workspace, so the same digits). The left
   vectors, scaled to l^H r = 1, and the eigenvalue condition numbers
@@ -19,9 +20,15 @@ Two solvers:
 What costs what: ``modal`` runs one LAPACK eigensolver and O(n) to O(n^2) NumPy work; the mode
 shapes (scaled), names, wn and zeta, the eigenvector matrices, the condition numbers, the
 modal form (:attr:`ModalAnalysis.decoupling`) and the table are built on first access. On the
-general path the accuracy warning needs condition numbers, which ``modal`` bounds cheaply
-first (:func:`_risk_bound`: one LU inverse of the real eigenvector matrix, ~1/10 of ``dgeev``)
-and computes from left vectors only when that bound says the warning may be due.
+general path the accuracy warning needs condition numbers, which ``modal`` takes from the
+inverse of the right vectors (:func:`_pair_conditions`: one LU inverse of the real
+eigenvector matrix, ~1/20 of ``dgeev`` at n = 38; a bound from it clears the usual model at
+once). The warning, when due, names the eigenvalue and its condition number from that inverse
+(they agree with LAPACK's left vectors to ~cond(V) eps relative: 1e-11 on well conditioned
+robots, a few 1e-4 at kappa ~ 1e14, where no digit beyond the first means anything). LAPACK's
+left vectors (a second ``dgeev``) are computed only where V is exactly singular or the risk
+lies within :func:`_risk_margin` of the threshold, or when
+:attr:`ModalAnalysis.left_vectors` or :attr:`ModalAnalysis.condition` is read.
 
 Conventions: wn = |lam| [rad/s], zeta = -Re(lam) / |lam|. Eigenvalues with |lam| <= rigid_tol are
 rigid-body (zero) modes: wn = 0 and zeta = NaN by definition (never computed as 0/0), labelled
@@ -65,6 +72,7 @@ SYMMETRY_RTOL = 1e-8
 #: ranges in :mod:`pinlin.fields`); one beyond is refused rather than analysed into inf/NaN.
 ENTRY_LIMIT = 1e150
 _EPS = float(np.finfo(float).eps)
+_TINY = float(np.finfo(float).tiny)
 
 
 def symmetric_applicable(model: LinearModel) -> bool:
@@ -72,11 +80,13 @@ def symmetric_applicable(model: LinearModel) -> bool:
     consistent with them (no E)."""
     if model.M is None or model.E is not None:
         return False
-    if model.info.get("velocity_terms", True) and model.C_damp.any():
+    if model.info.get("velocity_terms", True) and np.count_nonzero(model.C_damp):
         return False
     K = model.K
-    scale = max(float(np.abs(K).max(initial=0.0)), np.finfo(float).tiny)
-    return float(np.abs(K - K.T).max(initial=0.0)) <= SYMMETRY_RTOL * scale
+    if K.size == 0:
+        return True
+    scale = max(float(np.abs(K).max()), _TINY)
+    return float(np.abs(K - K.T).max()) <= SYMMETRY_RTOL * scale
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,15 +113,45 @@ class ModalAnalysis:
     model: LinearModel
     #: State rows of the shapes (the position coordinates).
     _rows: slice | np.ndarray
-    #: Symmetric path: the (K, M) eigenvectors by increasing |w2|, phi^T M phi = I.
-    _phi: np.ndarray | None = None
+    #: Symmetric path: the permutation that orders dsygvd's ascending w2 by |w2| (None: the
+    #: identity); the eigenvectors phi are computed on first access (:attr:`_phi`).
+    _pencil_order: np.ndarray | None = None
     #: General path: dgeev's real right vectors (a complex pair u +- iv stored as columns u, v),
     #: the imaginary parts of its eigenvalues, and the dgeev index of each sorted eigenvalue.
     _vectors: np.ndarray | None = None
     _imag: np.ndarray | None = None
     _order: np.ndarray | None = None
 
+    @classmethod
+    def _made(cls, eigenvalues: np.ndarray, rigid: np.ndarray, rigid_tol: float, method: str,
+              model: LinearModel, rows: slice | np.ndarray,
+              pencil_order: np.ndarray | None = None, vectors: np.ndarray | None = None,
+              imag: np.ndarray | None = None, order: np.ndarray | None = None) -> ModalAnalysis:
+        """An analysis from this module's solvers, whose fields are consistent by construction:
+        skips the frozen dataclass's per-field ``__setattr__`` (a microsecond or two, which
+        counts against a 4 x 4 ``eig``)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(eigenvalues=eigenvalues, rigid=rigid, rigid_tol=rigid_tol,
+                            method=method, model=model, _rows=rows,
+                            _pencil_order=pencil_order,
+                            _vectors=vectors, _imag=imag, _order=order)
+        return obj
+
     # ----------------------------------------------------------------------------------------
+    @functools.cached_property
+    def _phi(self) -> np.ndarray | None:
+        """Symmetric path: the (K, M) eigenvectors by increasing |w2|, phi^T M phi = I (None on
+        the general path). ``modal`` solves the pencil for its eigenvalues only (``dsygvd``
+        without vectors, about half the cost); the first access solves it again with vectors.
+        Both return w2 in ascending order, so column k belongs to the k-th eigenvalue (the two
+        runs' w2 agree to rounding, ~1e-15 relative), and the same reordering by |w2| applies."""
+        if self.method != "symmetric":
+            return None
+        if not self.model.M.shape[0]:
+            return np.zeros((0, 0))
+        _, phi = _solve_pencil(self.model, vectors=True)
+        return phi if self._pencil_order is None else phi[:, self._pencil_order]
+
     @functools.cached_property
     def _wn_zeta(self) -> tuple[np.ndarray, np.ndarray]:
         return _frequencies(self.eigenvalues, self.rigid)
@@ -130,7 +170,7 @@ class ModalAnalysis:
     def shapes(self) -> np.ndarray:
         """Mode shapes in the coordinates (position part of the right vectors), each scaled so
         that its largest entry is exactly 1."""
-        if self._phi is not None:
+        if self.method == "symmetric":
             return _normalize_shapes(np.repeat(self._phi, 2, axis=1))
         return _normalize_shapes(self.right_vectors[self._rows])
 
@@ -161,7 +201,7 @@ class ModalAnalysis:
     def right_vectors(self) -> np.ndarray:
         """Right eigenvectors of A as columns (Jordan chains for rigid modes of the symmetric
         path); built on first access."""
-        if self._phi is not None:
+        if self.method == "symmetric":
             return _symmetric_right(self.eigenvalues, self._phi, self.rigid)
         return _complex_vectors(self._vectors, self._imag)[:, self._order]
 
@@ -169,7 +209,7 @@ class ModalAnalysis:
     def left_vectors(self) -> np.ndarray:
         """Left eigenvectors as columns, scaled so that l_i^H r_i = 1; built on first access
         (general path: LAPACK ``dgeev`` once more, with left vectors)."""
-        if self._phi is not None:
+        if self.method == "symmetric":
             return _symmetric_left(self.eigenvalues, self.model.M @ self._phi, self.rigid)
         return _general_left(self.model.A, self._vectors, self._imag, self._order,
                              self.right_vectors)
@@ -341,17 +381,17 @@ def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None =
                                       f"of {', '.join(METHODS)}")
     if rigid_tol is not None:
         rigid_tol = _check_rigid_tol(rigid_tol)
-    _check_entries(model)
-    if model.E is not None and model.E.any():
-        model = model.standard_form()
+    a2: float | None = _check_entries(model)
+    if model.E is not None and np.count_nonzero(model.E):
+        model, a2 = model.standard_form(), None
     if method == "general":
-        return _general(model, rigid_tol)
+        return _general(model, rigid_tol, a2)
     if symmetric_applicable(model):
         return _symmetric(model, rigid_tol)
     if method == "symmetric":
         raise PinlinError(f"model '{model.name}' has velocity terms or a non-symmetric stiffness: "
                           "the symmetric (K, M) eigensolver does not apply; use method='general'")
-    return _general(model, rigid_tol)
+    return _general(model, rigid_tol, a2)
 
 
 def _normalize_shapes(shapes: np.ndarray) -> np.ndarray:
@@ -379,18 +419,23 @@ def _check_rigid_tol(rigid_tol: object) -> float:
     return value
 
 
-def _check_entries(model: LinearModel) -> None:
-    """Refuse a model whose matrices modal reads hold NaN, inf or |entry| > ENTRY_LIMIT.
+def _check_entries(model: LinearModel) -> float:
+    """Refuse a model whose matrices modal reads hold NaN, inf or |entry| > ENTRY_LIMIT;
+    return sum A_ij^2 (|A|_F^2, which the general path's accuracy bound uses).
 
     One dot product per matrix settles the usual case: sum x^2 <= ENTRY_LIMIT^2 holds for no
     NaN, inf or entry beyond the limit (its square alone exceeds ENTRY_LIMIT^2); only a matrix
     that fails it is searched entry by entry (many entries near the limit pass there)."""
     limit2 = ENTRY_LIMIT * ENTRY_LIMIT
+    a2 = math.inf
     for key in ("A", "E", "M", "C_damp", "K"):
         mat = getattr(model, key)
         if mat is None or mat.size == 0:
             continue
-        if np.vdot(mat, mat) <= limit2:  # NaN compares False (BLAS ddot: no FP warnings)
+        total = float(np.vdot(mat, mat))
+        if key == "A":
+            a2 = total
+        if total <= limit2:  # NaN compares False (BLAS ddot: no FP warnings)
             continue
         with np.errstate(invalid="ignore"):
             bad = ~(np.abs(mat) <= ENTRY_LIMIT)  # NaN compares False
@@ -401,6 +446,7 @@ def _check_entries(model: LinearModel) -> None:
                          f"that are NaN, inf or beyond {ENTRY_LIMIT:g} in magnitude (first "
                          f"{key}[{i}, {j}] = {mat[i, j]:.3g}); modal analysis needs finite "
                          f"entries with |x| <= {ENTRY_LIMIT:g} (float64 squares them)")
+    return a2
 
 
 def _rigid_tol(largest: float, rigid_tol: float | None) -> float:
@@ -420,34 +466,41 @@ def _frequencies(lam: np.ndarray, rigid: np.ndarray) -> tuple[np.ndarray, np.nda
 
 # --------------------------------------------------------------------------------------------
 # Symmetric path
+def _solve_pencil(model: LinearModel, vectors: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """w2 (ascending) and, with ``vectors``, phi (phi^T M phi = I) of the definite pencil
+    (K_s, M), K_s = (K + K^T) / 2: LAPACK ``dsygvd``, the call and workspace of
+    ``scipy.linalg.eigh(K_s, M, driver="gvd", eigvals_only=not vectors)``, without its
+    checks (the entries are checked by ``modal``)."""
+    K = model.K
+    Ks = 0.5 * (K + K.T)    # symmetric bit for bit, so Ks.T is itself in Fortran order
+    w2, phi, info = lapack.dsygvd(Ks.T, model.M, jobz="V" if vectors else "N", overwrite_a=1)
+    if info:
+        raise LinAlgError(_sygvd_failure(info, K.shape[0]))
+    return w2, (phi if vectors else None)
+
+
 def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     n = model.M.shape[0]
     if n == 0:
-        return ModalAnalysis(np.zeros(0, dtype=complex), np.zeros(0, dtype=bool),
-                             _rigid_tol(0.0, rigid_tol), "symmetric", model, slice(0, 0),
-                             _phi=np.zeros((0, 0)))
-    K = model.K
-    Ks = 0.5 * (K + K.T)    # symmetric bit for bit, so Ks.T is itself in Fortran order
-    # = scipy.linalg.eigh(Ks, M, driver="gvd") (same LAPACK call and workspace), without its
-    # checks (entries checked above): phi^T M phi = I, w2 ascending.
-    w2, phi, info = lapack.dsygvd(Ks.T, model.M, overwrite_a=1)
-    if info:
-        raise LinAlgError(_sygvd_failure(info, n))
+        return ModalAnalysis._made(np.zeros(0, dtype=complex), np.zeros(0, dtype=bool),
+                                   _rigid_tol(0.0, rigid_tol), "symmetric", model, slice(0, 0))
+    w2, _ = _solve_pencil(model, vectors=False)
     mag = np.sqrt(np.abs(w2))
-    tol = _rigid_tol(float(mag.max(initial=0.0)), rigid_tol)
+    tol = _rigid_tol(float(max(mag[0], mag[-1])), rigid_tol)  # w2 ascending: |w2| peaks at an end
+    order = None
     if not w2[0] >= 0.0:      # negative w2 (unstable or rounding): order by |w2|
         order = np.argsort(np.abs(w2), kind="stable")
-        w2, phi, mag = w2[order], phi[:, order], mag[order]
+        w2, mag = w2[order], mag[order]
         root = np.where(w2 >= 0, 1j * mag, mag)  # +i w (stable) or +sigma (unstable)
     else:                           # ascending and >= 0: already ordered by |w2|
         root = 1j * mag
     rigid_mode = mag <= tol
-    if rigid_mode.any():
+    if np.count_nonzero(rigid_mode):
         root[rigid_mode] = 0.0
     lam = np.empty(2 * n, dtype=complex)
     lam[0::2], lam[1::2] = root, -root       # +i w first (oscillatory), +sigma first (unstable)
-    return ModalAnalysis(lam, rigid_mode.repeat(2), tol, "symmetric", model, slice(0, n),
-                         _phi=phi)
+    return ModalAnalysis._made(lam, rigid_mode.repeat(2), tol, "symmetric", model,
+                               slice(0, n), pencil_order=order)
 
 
 def _sygvd_failure(info: int, n: int) -> str:
@@ -529,7 +582,9 @@ def _complex_vectors(v: np.ndarray, wi: np.ndarray) -> np.ndarray:
     return out
 
 
-def _general(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
+def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = None
+             ) -> ModalAnalysis:
+    """The general path; ``a2`` is |A|_F^2 when the caller has it (inf or None: not known)."""
     A = model.A
     if A.shape[0] == 0:
         return _empty(model, rigid_tol)
@@ -542,8 +597,9 @@ def _general(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     tol = _rigid_tol(float(magnitudes[order[-1]]), rigid_tol)
     lam = lam[order]
     rigid = magnitudes[order] <= tol        # a leading run: sorted by |lam|
-    if rigid[0]:
-        lam[rigid] = 0.0
+    n_rigid = int(np.count_nonzero(rigid))
+    if n_rigid:
+        lam[:n_rigid] = 0.0
     if model.M is not None:
         rows: slice | np.ndarray = slice(0, A.shape[0] // 2)
     elif model.G is not None:  # canonical (p, q): shapes in q
@@ -551,10 +607,10 @@ def _general(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
                         dtype=int)
     else:
         rows = slice(None)
-    result = ModalAnalysis(lam, rigid, tol, "general", model, rows, _vectors=vr, _imag=wi,
-                           _order=order)
-    moving = order[int(np.count_nonzero(rigid)):] if rigid[0] else slice(None)
-    _warn_ill_conditioned_eigenvalues(result, _risk_bound(A, vr, magnitudes, moving))
+    result = ModalAnalysis._made(lam, rigid, tol, "general", model, rows, vectors=vr, imag=wi,
+                                 order=order)
+    if n_rigid < len(order):                # no warning about rigid modes
+        _warn_if_at_risk(result, vr, wi, magnitudes, n_rigid, a2)
     return result
 
 
@@ -586,58 +642,107 @@ def _general_left(A: np.ndarray, vr: np.ndarray, wi: np.ndarray, order: np.ndarr
 
 #: modal warns when rounding in A alone may move an eigenvalue by more than this (relative).
 EIGENVALUE_RISK = 1e-6
-#: Factor by which the cheap bound (:func:`_risk_bound`) must stay below EIGENVALUE_RISK for
-#: modal to skip the condition numbers: it covers the rounding in the bound and in LAPACK's
-#: kappa (the two agreed within 4 % on pinlin's models, nearly repeated eigenvalues included).
-RISK_MARGIN = 100.0
+#: Factor below EIGENVALUE_RISK under which the cheap bound (:func:`_warn_if_at_risk`)
+#: settles that no warning is due (it is within a factor 2 N of kappa eps max|A| / |lam|).
+RISK_MARGIN = 4.0
+#: Least factor by which the risk from V^-1 must clear the threshold to be trusted over
+#: LAPACK's (:func:`_risk_margin`); within it, LAPACK's left vectors decide.
+RISK_MARGIN_MIN = 1.01
 
 
-def _risk_bound(A: np.ndarray, vr: np.ndarray, magnitudes: np.ndarray,
-                moving: slice | np.ndarray) -> float:
-    """An upper bound on max kappa_i eps max|A| / |lam_i| over the non-rigid eigenvalues
-    (dgeev's columns ``moving``; ``magnitudes`` |lam| in dgeev's order), from dgeev's right
-    vectors ``vr`` alone; inf or NaN when they are singular to working precision.
+def _inverse(vr: np.ndarray) -> np.ndarray | None:
+    """V^-1 by LU (LAPACK ``dgetrf``, ``dgetri``), or None when V is exactly singular."""
+    lu, piv, info = lapack.dgetrf(vr)
+    if info:
+        return None
+    inv, info = lapack.dgetri(lu, piv, overwrite_lu=1)
+    return None if info else inv
+
+
+def _pair_conditions(k2: np.ndarray, wi: np.ndarray) -> np.ndarray:
+    """Eigenvalue condition numbers kappa (dgeev's order) from the squared row norms ``k2`` of
+    V^-1, V being dgeev's real right vectors (``wi``: imaginary parts of the eigenvalues).
 
     For a diagonalizable A = R Lam R^-1, the left vector scaled to l_i^H r_i = 1 is row i of
     R^-1 (conjugated), so kappa_i = |l_i| |r_i| / |l_i^H r_i| = |e_i^T R^-1| |r_i|, and dgeev
     scales every r_i to |r_i| = 1. It stores R as the real V (a pair u +- iv as columns u, v,
     |u|^2 + |v|^2 = 1): R = V P with P = [[1, 1], [i, -i]] on each pair, so the pair's rows
     of R^-1 = P^-1 V^-1 are (w_u -+ i w_v) / 2, with w the rows of V^-1:
-    kappa^2 = (|w_u|^2 + |w_v|^2) / 4 <= max(|w_u|^2, |w_v|^2), and a real eigenvalue has
-    kappa^2 = |w|^2. Hence kappa_i / |lam_i| <= max_j |w_j| / |lam_j| over the columns j
-    (|lam| is the same for both columns of a pair): one real LU inverse of V (2 N^3 flops,
-    ~1/10 of dgeev), within a factor 2 of the exact value. A defective or nearly defective A
-    has a V singular to working precision, and the bound is inf, NaN or huge."""
-    if isinstance(moving, np.ndarray) and moving.size == 0:
-        return 0.0                          # all rigid: nothing to warn about
-    lu, piv, info = lapack.dgetrf(vr)
-    if info:
-        return math.inf
-    inv, info = lapack.dgetri(lu, piv, overwrite_lu=1)
-    if info:
-        return math.inf
-    # |w_j| / |lam_j| (einsum: no overflow warning where V^-1 is huge)
-    rows = np.sqrt(np.einsum("ij,ij->i", inv[moving], inv[moving]))
-    worst = np.maximum.reduce(rows / magnitudes[moving])
-    return float(worst) * _EPS * float(np.abs(A).max())
+    kappa^2 = (|w_u|^2 + |w_v|^2) / 4 for both, and a real eigenvalue has kappa = |w|. These
+    agree with the kappa of LAPACK's left vectors to ~cond(V) eps relative (1e-11 on pinlin's
+    robots; 2e-4 where kappa ~ 1e14, whose digits beyond the first are rounding either way).
+    The rows of a (nearly) defective block, such as a floating base's rigid modes (2x2
+    Jordan blocks), overflow to inf; the others stay accurate."""
+    kappa = np.sqrt(k2)
+    if np.count_nonzero(wi):
+        u = np.flatnonzero(wi > 0)          # a pair's columns are u (wi > 0), then v
+        pair = np.sqrt(0.25 * (k2[u] + k2[u + 1]))
+        kappa[u] = pair
+        kappa[u + 1] = pair
+    return kappa
 
 
-def _warn_ill_conditioned_eigenvalues(result: ModalAnalysis, bound: float = math.inf) -> None:
-    """AccuracyWarning when rounding in A (eps |A|) can move a non-rigid eigenvalue by more
-    than EIGENVALUE_RISK of itself: kappa eps max|A| / |lam| > 1e-6. ``bound`` (from
-    :func:`_risk_bound`) below EIGENVALUE_RISK / RISK_MARGIN settles it without the
-    condition numbers."""
-    if bound <= EIGENVALUE_RISK / RISK_MARGIN:
-        return
+def _warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
+                     magnitudes: np.ndarray, n_rigid: int, a2: float | None = None) -> None:
+    """AccuracyWarning when rounding in A (eps max|A|) can move a non-rigid eigenvalue by
+    more than EIGENVALUE_RISK of itself: kappa eps max|A| / |lam| > 1e-6 (``vr``, ``wi``,
+    ``magnitudes`` |lam|: in dgeev's order; the first ``n_rigid`` sorted eigenvalues are rigid;
+    ``a2``: |A|_F^2 if known).
+
+    One LU inverse of the right vectors V settles it (:func:`_pair_conditions`): first a bound
+    (max over the columns of |row of V^-1| / |lam|, >= kappa / |lam|, times eps |A|_F >=
+    eps max|A|), which clears the usual model; else kappa itself. Only where V is singular or
+    kappa lies within :func:`_risk_margin` of the threshold are LAPACK's left vectors computed
+    (:attr:`ModalAnalysis.condition`, a second ``dgeev``), so that a borderline case is settled
+    exactly as the condition numbers a user reads would settle it."""
+    A, order = result.model.A, result._order
+    inv = _inverse(vr)
+    if inv is not None:
+        # Squared row norms (einsum: no overflow warning where V^-1 is huge, inf then).
+        k2 = np.einsum("ij,ij->i", inv, inv)
+        moving = order[n_rigid:]                        # sorted, non-rigid, dgeev's indices
+        k2_moving, lam_moving = (k2[moving], magnitudes[moving]) if n_rigid else (k2, magnitudes)
+        worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
+        frobenius = math.sqrt(a2 if a2 is not None and a2 < math.inf else np.vdot(A, A))
+        if worst_column * _EPS * frobenius <= EIGENVALUE_RISK / RISK_MARGIN:   # False for NaN
+            return
+        scale = _EPS * float(np.abs(A).max())
+        kappa = _pair_conditions(k2, wi)[moving]
+        risk = kappa * scale / magnitudes[moving]
+        worst = int(np.argmax(risk))        # a NaN wins argmax, and fails both tests below
+        ratio = float(risk[worst]) / EIGENVALUE_RISK
+        margin = _risk_margin(k2_moving, k2.size)
+        if ratio * margin < 1.0:
+            return
+        if margin < ratio < math.inf:
+            _warn(result, n_rigid + worst, float(kappa[worst]), float(risk[worst]))
+            return
+    scale = _EPS * float(np.abs(A).max())
     ok = ~result.rigid
-    if not ok.any():
-        return
     kappa = result.condition[ok]
-    risk = kappa * np.finfo(float).eps * np.abs(result.model.A).max() / result.wn[ok]
+    risk = kappa * scale / result.wn[ok]
     worst = int(np.argmax(risk))
     if risk[worst] > EIGENVALUE_RISK:
-        lam = result.eigenvalues[ok][worst]
-        warnings.warn(AccuracyWarning(
-            f"model '{result.model.name}': eigenvalue {lam:.6g} has condition number "
-            f"{kappa[worst]:.2e}; rounding in A alone may move it by {risk[worst]:.1e} "
-            "(relative)", float(kappa[worst])), stacklevel=4)
+        _warn(result, int(np.flatnonzero(ok)[worst]), float(kappa[worst]), float(risk[worst]))
+
+
+def _risk_margin(k2: np.ndarray, n: int) -> float:
+    """How far (a factor > 1) the risk from V^-1 must lie from the threshold to be trusted
+    over LAPACK's: 1 + 100 n c eps with c = sqrt(n sum k2) (``k2``: squared norms of the rows
+    of V^-1 that belong to non-rigid eigenvalues; n: size of A), the relative error of either
+    kappa bounded generously (those rows are accurate to ~c eps relative, c being cond_F(V)
+    restricted to them; dgeev's columns have unit norm). 1.01 for pinlin's robots at rest;
+    ~150 where kappa ~ 1e14 (the floating bases at a moving state: those warn far above it).
+    NaN or inf rows give inf: LAPACK decides."""
+    cond = math.sqrt(n * float(k2.sum()))
+    return max(RISK_MARGIN_MIN, 1.0 + 100.0 * n * cond * _EPS)
+
+
+def _warn(result: ModalAnalysis, index: int, kappa: float, risk: float) -> None:
+    """The AccuracyWarning for eigenvalue ``index`` (sorted) of condition number ``kappa``
+    and relative risk ``risk``."""
+    lam = result.eigenvalues[index]
+    warnings.warn(AccuracyWarning(
+        f"model '{result.model.name}': eigenvalue {lam:.6g} has condition number "
+        f"{kappa:.2e}; rounding in A alone may move it by {risk:.1e} (relative)", kappa),
+        stacklevel=5)  # _warn, _warn_if_at_risk, _general, modal, the caller

@@ -10,6 +10,7 @@ motion about the state (q0, v = 0), whose acceleration a0 = -M^-1 residual is re
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -68,7 +69,11 @@ class OperatingPoint:
     def with_outputs(self, y: np.ndarray) -> OperatingPoint:
         """The same point with output values ``y`` (a field copy: every other field is the
         same object, already checked when this point was made)."""
-        return OperatingPoint.trusted(**{**self.__dict__, "y": y})
+        obj = object.__new__(OperatingPoint)
+        fields = obj.__dict__
+        fields.update(self.__dict__)
+        fields["y"] = y
+        return obj
 
     @property
     def contact_forces(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -102,8 +107,14 @@ def configuration(system: System, spec: Mapping[str, Any] | None = None) -> np.n
     Raises:
         SceneError: unknown joint, wrong number of values, non-unit quaternion.
     """
+    if spec is None:  # the scene's own: built once per system (rpy, quaternions), then copied
+        return system.scene_configuration.copy()
+    return _configuration_from(system, spec)
+
+
+def _configuration_from(system: System, spec: Mapping[str, Any]) -> np.ndarray:
+    """:func:`configuration` for a given ``spec``, computed."""
     q = system.q_ref.copy()
-    spec = system.scene.operating_point.q if spec is None else spec
     for name, value in spec.items():
         fld = f"operating_point.q.{name}"
         j = system.joint(name, fld)
@@ -184,7 +195,7 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
     tau = gravity - system.spring_torque(q0) if system.has_springs else gravity
     u0 = tau[system.actuated_columns]
     residual = np.zeros(nv)
-    tol = residual_tolerance(float(np.abs(gravity).max())) if nv else residual_tolerance(0.0)
+    tol = residual_tolerance(float(np.abs(gravity).max()) if nv else 0.0)
     free_at = system.unactuated
     worst, equilibrium = 0, True
     if free_at.size:
@@ -192,27 +203,28 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
         residual[free_at] = free
         k = int(np.abs(free).argmax())
         worst, equilibrium = int(free_at[k]), bool(abs(free[k]) <= tol)
-    notes: tuple[str, ...] = ()
-    a0 = np.zeros(nv)
-    if not equilibrium:
-        name = system.coordinate_names[worst]
-        if not allow_non_equilibrium:
-            raise EquilibriumError(
-                f"scene '{system.scene.name}': q0 is not an equilibrium: the inputs cannot "
-                f"supply {residual[worst]:.6g} N or N*m along '{name}' (largest unactuated "
-                f"residual, tolerance {tol:.1e}); actuate it, change q0, or set "
-                "operating_point.allow_non_equilibrium = true (--allow-non-equilibrium on the "
-                "command line)",
-                residual, system.coordinate_names)
-        # M a0 + g = S u0 + tau_spring and S u0 = g - tau_spring - residual: a0 = -M^-1 residual.
-        if mass_inverse is None:
-            mass_inverse = system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned)
-        a0 = -(mass_inverse @ residual)
-        notes = (f"not an equilibrium (opted in): residual {residual[worst]:.6g} along "
-                 f"'{name}', the model describes the motion about (q0, v = 0) with "
-                 f"|a0| = {np.sqrt(a0 @ a0):.6g}",)
+    if equilibrium:
+        return OperatingPoint.trusted(q=q0, v=np.zeros(nv), u=u0, a=np.zeros(nv),
+                                      residual=residual, equilibrium=True, tolerance=tol, y=None,
+                                      lam=None, notes=(), lam_names=())
+    name = system.coordinate_names[worst]
+    if not allow_non_equilibrium:
+        raise EquilibriumError(
+            f"scene '{system.scene.name}': q0 is not an equilibrium: the inputs cannot "
+            f"supply {residual[worst]:.6g} N or N*m along '{name}' (largest unactuated "
+            f"residual, tolerance {tol:.1e}); actuate it, change q0, or set "
+            "operating_point.allow_non_equilibrium = true (--allow-non-equilibrium on the "
+            "command line)",
+            residual, system.coordinate_names)
+    # M a0 + g = S u0 + tau_spring and S u0 = g - tau_spring - residual: a0 = -M^-1 residual.
+    if mass_inverse is None:
+        mass_inverse = system.mass_inverse(q0, allow_ill_conditioned=allow_ill_conditioned)
+    a0 = -(mass_inverse @ residual)
+    notes = (f"not an equilibrium (opted in): residual {float(residual[worst]):.6g} along "
+             f"'{name}', the model describes the motion about (q0, v = 0) with "
+             f"|a0| = {math.sqrt(a0 @ a0):.6g}",)
     return OperatingPoint.trusted(q=q0, v=np.zeros(nv), u=u0, a=a0, residual=residual,
-                                  equilibrium=equilibrium, tolerance=tol, y=None, lam=None,
+                                  equilibrium=False, tolerance=tol, y=None, lam=None,
                                   notes=notes, lam_names=())
 
 

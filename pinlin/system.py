@@ -103,7 +103,7 @@ class System:
         nu = len(self.actuated)
         selection = np.zeros((model.nv, nu))
         selection[self.actuated, np.arange(nu)] = 1.0
-        self.input_matrix = read_only(selection)
+        self.input_matrix = _known_finite(selection)
         self.unactuated = complement(model.nv, self.actuated)
         self.actuated_columns = _as_slice(self.actuated)
         self._workspaces = threading.local()
@@ -297,12 +297,12 @@ class System:
     def state_output(self) -> tuple[np.ndarray, np.ndarray]:
         """(C, D) for y = x: the identity and zeros, read-only, built once."""
         n = 2 * self.nv
-        return read_only(np.eye(n)), read_only(np.zeros((n, len(self.actuated))))
+        return _known_finite(np.eye(n)), _known_finite(np.zeros((n, len(self.actuated))))
 
     @functools.cached_property
     def zero_velocity_terms(self) -> np.ndarray:
         """The nv x nv zero matrix (read-only): C of a model at rest without damping."""
-        return read_only(np.zeros((self.nv, self.nv)))
+        return _known_finite(np.zeros((self.nv, self.nv)))
 
     @functools.cached_property
     def kinematic_rows(self) -> np.ndarray:
@@ -312,6 +312,19 @@ class System:
         A = np.zeros((2 * n, 2 * n))
         A[:n, n:] = np.eye(n)
         return read_only(A)
+
+    @functools.cached_property
+    def scene_configuration(self) -> np.ndarray:
+        """q0 the scene asks for (read-only; :func:`pinlin.operating_point.configuration`
+        hands out copies), built on first use."""
+        from .operating_point import _configuration_from
+
+        return read_only(_configuration_from(self, self.scene.operating_point.q))
+
+    @functools.cached_property
+    def _refuse_limit(self) -> float:
+        """:func:`pinlin.conditioning.refuse_condition` of nv (fixed for a system)."""
+        return refuse_condition(self.nv)
 
     def mass_inverse(self, q: np.ndarray, *, allow_ill_conditioned: bool = False
                      ) -> np.ndarray:
@@ -342,15 +355,18 @@ class System:
         n = diag.size
         if not n:
             return Minv
+        # The usual case in one dot product and one min: n sum M_ii Minv_ii = tr(Ms) tr(Ms^-1)
+        # >= cond_2(Ms) for M^-1 positive definite, Ms the unit-diagonal scaling of M. A sum
+        # that is finite leaves no inf or NaN on the diagonal (an inf term makes it +-inf or
+        # NaN); the checks below then take the same branch as this one. (np.vdot: BLAS ddot,
+        # which raises no floating-point warning for inf * 0, unlike the matmul ufunc.)
+        bound = n * float(np.vdot(M.diagonal(), diag))
+        if 0.0 < bound < self._refuse_limit and diag.min() > 0.0:   # False for NaN
+            return Minv
         # A coordinate that moves no inertia makes its row of M^-1 inf or NaN, diagonal included
         # (NaN compares False).
         if not (diag.max() < np.inf and diag.min() > -np.inf):
             self._raise_singular(q, liftable=False)
-        # n sum M_ii Minv_ii = tr(Ms) tr(Ms^-1) >= cond_2(Ms) for M^-1 positive definite, Ms
-        # the unit-diagonal scaling of M.
-        bound = n * float(M.diagonal() @ diag)
-        if diag.min() > 0.0 and bound < refuse_condition(n):
-            return Minv
         condition = singular_to_working_precision(np.triu(M) + np.triu(M, 1).T, bound)
         if condition is None and diag.min() <= 0.0:  # M^-1 indefinite although M is not
             condition = float("inf")
@@ -419,6 +435,14 @@ def _robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:
                                     loader.ref_posture)
                  if rm.srdf_path is not None else pin.neutral(model))
     return model, np.asarray(q_ref, float)
+
+
+def _known_finite(arr: np.ndarray) -> np.ndarray:
+    """:func:`pinlin.linear_model.known_finite` (imported here: linear_model imports this
+    module through operating_point)."""
+    from .linear_model import known_finite
+
+    return known_finite(arr)
 
 
 def _as_slice(index: np.ndarray) -> slice | np.ndarray:

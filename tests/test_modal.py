@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import importlib
+import warnings
+
 import numpy as np
 import pytest
+import scipy.linalg as sla
 from conftest import URDF_DIR
 from scipy.optimize import linear_sum_assignment
 
@@ -132,3 +136,131 @@ def test_shapes_are_normalized_and_named():
 def test_symmetric_method_refused_with_damping():
     with pytest.raises(pinlin.PinlinError, match="general"):
         pinlin.modal(pinlin.linearize(URDF_DIR / "ur5_arm.toml"), method="symmetric")
+
+
+# ------------------------------------------------------------------------------------------
+# What modal computes eagerly and what on first access (issue 18), and the accuracy warning
+# decided from the right vectors alone.
+
+def _lapack_warning(modes) -> tuple[bool, complex, float]:
+    """The warning decision from LAPACK's left vectors (modes.condition), the reference the
+    cheap decision must reproduce: (warn, worst eigenvalue, its kappa)."""
+    ok = ~modes.rigid
+    kappa = modes.condition[ok]
+    risk = kappa * np.finfo(float).eps * np.abs(modes.model.A).max() / modes.wn[ok]
+    worst = int(np.argmax(risk))
+    return bool(risk[worst] > 1e-6), modes.eigenvalues[ok][worst], float(kappa[worst])
+
+
+def _near_defective(delta: float, rigid: bool = False) -> pinlin.LinearModel:
+    """One mode of 1 rad/s at damping ratio 1 - delta (a double root, defective, at
+    delta = 0) beside a well separated one (and, with ``rigid``, a free coordinate: a 2x2
+    Jordan block at 0, sorted first): kappa ~ 1 / sqrt(delta) grows as the pair closes."""
+    if rigid:
+        return _model_from_modes(np.array([0.0, 1.0, 40.0]), np.array([0.0, 1.0 - delta, 0.05]))
+    return _model_from_modes(np.array([1.0, 40.0]), np.array([1.0 - delta, 0.05]))
+
+
+#: Damping ratios 1 -+ delta around the threshold: kappa eps max|A| / |lam| crosses 1e-6
+#: between delta = 1e-13 and 5e-14 (kappa ~ 3e6; max|A| = 1600).
+DELTAS = [1e-2, 1e-8, *np.geomspace(3e-13, 1e-15, 9), -1e-8, *(-np.geomspace(3e-13, 1e-15, 5))]
+
+
+@pytest.mark.parametrize("delta", DELTAS)
+@pytest.mark.parametrize("margin", [None, 1e3])
+@pytest.mark.parametrize("rigid", [False, True])
+def test_warning_from_right_vectors_matches_lapack_condition_numbers(delta, margin, rigid,
+                                                                      monkeypatch):
+    """Across the threshold, the warning is given exactly when LAPACK's left vectors say it
+    is due, naming the same eigenvalue and its condition number to the digits printed; with
+    a wide margin (1e3) the cases near the threshold are settled by LAPACK's left vectors
+    instead, with the same outcome."""
+    if margin is not None:
+        monkeypatch.setattr(importlib.import_module("pinlin.modal"), "RISK_MARGIN_MIN", margin)
+    model = _near_defective(delta, rigid)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        modes = pinlin.modal(model)
+    warned = [w for w in caught if issubclass(w.category, pinlin.AccuracyWarning)]
+    due, lam, kappa = _lapack_warning(modes)
+    assert bool(warned) == due
+    if warned:
+        assert warned[0].message.condition == pytest.approx(kappa, rel=1e-3)
+        assert f"{lam:.6g}" in str(warned[0].message)
+        assert warned[0].filename == __file__          # points at the caller of modal
+
+
+def test_condition_numbers_from_the_inverse_of_the_right_vectors():
+    """kappa from the rows of V^-1 (pairs combined) equals LAPACK's left-vector kappa."""
+    modal_module = importlib.import_module("pinlin.modal")
+    rng = np.random.default_rng(3)
+    for n in (2, 5, 12, 30):
+        A = rng.normal(size=(n, n)) + np.diag(rng.uniform(0.5, 3.0, n))
+        wr, wi, _, vr = modal_module._geev(A, left=False)
+        inv = np.linalg.inv(vr)
+        kappa = modal_module._pair_conditions(np.einsum("ij,ij->i", inv, inv), wi)
+        lam, L, R = sla.eig(A, left=True, right=True)
+        assert np.allclose(lam, wr + 1j * wi, rtol=0, atol=0)      # same dgeev, same order
+        ref = np.linalg.norm(L, axis=0) * np.linalg.norm(R, axis=0) / np.abs(
+            np.einsum("ij,ij->j", L.conj(), R))
+        np.testing.assert_allclose(kappa, ref, rtol=1e-9)
+
+
+def test_general_path_computes_no_left_vectors_unless_read():
+    model = pinlin.linearize(URDF_DIR / "ur5_arm.toml")     # damped: general path
+    modes = pinlin.modal(model)
+    assert modes.method == "general"
+    for lazy in ("left_vectors", "condition", "right_vectors", "shapes", "wn", "zeta"):
+        assert lazy not in modes.__dict__, lazy
+    # A warned model does not need them either: the warning comes from V^-1.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warned = pinlin.modal(_near_defective(1e-14))
+    assert any(issubclass(w.category, pinlin.AccuracyWarning) for w in caught)
+    assert "left_vectors" not in warned.__dict__
+    assert _lapack_warning(warned)[0]
+
+
+def test_symmetric_path_solves_for_vectors_on_first_access():
+    """modal solves (K, M) for eigenvalues only; the shapes, computed later by a second solve
+    with vectors, belong to those eigenvalues (A R = R J), and the eigenvalues equal
+    scipy's eigh of the pencil to rounding."""
+    model = pinlin.linearize(_undamped_scenes()["talos_floating_zero_g"])
+    modes = pinlin.modal(model)
+    assert modes.method == "symmetric" and "_phi" not in modes.__dict__
+    K = 0.5 * (model.K + model.K.T)
+    w2 = sla.eigh(K, model.M, eigvals_only=True, driver="gvd")
+    scale = np.abs(w2).max()
+    moving = ~modes.rigid[0::2]
+    np.testing.assert_allclose(np.abs(modes.eigenvalues[0::2][moving]) ** 2,
+                               np.sort(np.abs(w2))[moving], rtol=1e-12)   # by |w2|
+    R = modes.right_vectors
+    assert "_phi" in modes.__dict__
+    J = np.diag(modes.eigenvalues)
+    pairs = np.flatnonzero(modes.rigid)[::2]
+    J[pairs, pairs + 1] = 1.0
+    np.testing.assert_allclose(model.A @ R, R @ J, atol=1e-9 * max(1.0, scale))
+
+
+def test_unstable_symmetric_pencil_keeps_vectors_matched():
+    """Negative w2 (an inverted pendulum) reorders the pencil's eigenvalues by |w2|: the
+    vectors computed on first access follow the same order."""
+    wn2 = np.array([-4.0, 1.0, 9.0, -0.25])
+    rng = np.random.default_rng(11)
+    Q, _ = np.linalg.qr(rng.normal(size=(4, 4)))
+    K = Q @ np.diag(wn2) @ Q.T
+    K = 0.5 * (K + K.T)
+    names = [f"c{i}" for i in range(4)]
+    model = pinlin.LinearModel(
+        A=np.block([[np.zeros((4, 4)), np.eye(4)], [-K, np.zeros((4, 4))]]),
+        B=np.zeros((8, 1)), C=np.eye(8), D=np.zeros((8, 1)),
+        state_names=[f"q:{s}" for s in names] + [f"v:{s}" for s in names],
+        input_names=["u"], output_names=[f"y{i}" for i in range(8)],
+        M=np.eye(4), C_damp=np.zeros((4, 4)), K=K, Bu=np.zeros((4, 1)), name="inverted",
+        info={"velocity_terms": False})
+    modes = pinlin.modal(model)
+    assert modes.method == "symmetric" and not modes.is_stable
+    R = modes.right_vectors
+    np.testing.assert_allclose(model.A @ R, R * modes.eigenvalues, atol=1e-12)
+    np.testing.assert_allclose(np.abs(modes.eigenvalues[0::2]), np.sqrt([0.25, 1, 4, 9]),
+                               rtol=1e-14)
