@@ -7,15 +7,25 @@ part like any joint's: Newton may move them and the partition may make them depe
 independent (states then named ``q:root_joint[i]``). Redundant rows (a planar loop closed by a
 3-D point constraint has one; two point contacts on one rigid body share their distance) are
 found by a column-pivoted QR of Phi_q^T and dropped.
+
+Many operating points (a gain schedule sweeping a crank): each new guess is solved by Newton
+from that guess, to max |Phi| <= :data:`ASSEMBLY_TOL` [m or rad], exactly as a single call
+would; a guess solved before comes back from the :class:`AssemblyCache` of the constraint set,
+bit for bit. The small dense solves call LAPACK directly (:func:`lstsq`, :func:`lstsq_rank`,
+:func:`pivoted_qr`, :func:`condition_2`): the same routines and tolerances as numpy's and
+scipy's wrappers, whose argument checks cost several times the factorization at these sizes.
 """
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 import scipy.linalg as sla
+from scipy.linalg import lapack
 
 from .arrays import complement
 from .exceptions import AssemblyError, SceneError
@@ -24,6 +34,84 @@ from .exceptions import AssemblyError, SceneError
 RANK_TOL = 1e-9
 #: Assembly converges when max |Phi| is below this [m or rad].
 ASSEMBLY_TOL = 1e-12
+#: Solved assemblies kept per constraint set (:class:`AssemblyCache`).
+CACHE_SIZE = 256
+#: A square Newton system is solved by LU when its smallest pivot exceeds this fraction of
+#: the largest (far from singular); else by the SVD least squares, as np.linalg.lstsq would.
+LU_PIVOT_RATIO = 1e-8
+_EPS = float(np.finfo(float).eps)
+
+
+# ---------------------------------------------------------------------------------------------
+# LAPACK called directly: on these small matrices (m, nv <= ~40) the checked wrappers of numpy
+# and scipy cost 3-10x the factorization itself. Each helper computes what the wrapper named in
+# its docstring computes, with the same tolerances.
+
+_GELSD_WORK: dict[tuple[int, int], tuple[int, int]] = {}
+
+
+def lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.lstsq(a, b, rcond=None)[0]`` for a vector b: the minimum-norm least-squares
+    solution, singular values below eps max(m, n) s_max dropped (LAPACK ``dgelsd``).
+
+    Rows of ``a`` that are exactly zero do not change the minimizer (a planar loop's
+    out-of-plane row): they are left out. A square rest whose LU pivots stay within
+    :data:`LU_PIVOT_RATIO` of each other is solved by LU (``dgesv``): the same solution to
+    rounding, several times cheaper."""
+    m, n = a.shape
+    if m > n:
+        nonzero = a.any(axis=1)
+        if int(nonzero.sum()) == n:
+            a, b, m = a[nonzero], b[nonzero], n
+    if m == n and n:
+        lu, _, x, info = lapack.dgesv(a, b)
+        if info == 0:
+            pivots = np.abs(lu.diagonal()).tolist()  # a few numbers: Python's min/max
+            if min(pivots) > LU_PIVOT_RATIO * max(pivots):  # False on NaN
+                return x
+    return lstsq_rank(a, b)[0]
+
+
+def lstsq_rank(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
+    """``np.linalg.lstsq(a, b, rcond=None)``'s solution and rank for a vector b (LAPACK
+    ``dgelsd``, the routine numpy calls, with numpy's rcond = eps max(m, n))."""
+    m, n = a.shape
+    work = _GELSD_WORK.get((m, n))
+    if work is None and min(m, n):
+        lw, liw, info = lapack.dgelsd_lwork(m, n, 1, -1.0)
+        work = _GELSD_WORK[(m, n)] = (int(lw), int(liw)) if info == 0 else (0, 0)
+    if not min(m, n) or work is None or not work[0]:
+        x, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
+        return x, int(rank)
+    rhs = np.zeros(max(m, n))
+    rhs[:m] = b
+    x, _, rank, info = lapack.dgelsd(a, rhs, work[0], work[1], _EPS * max(m, n))
+    if info != 0:  # the SVD did not converge: numpy's path raises its own error
+        x, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
+        return x, int(rank)
+    return x[:n], int(rank)
+
+
+def pivoted_qr(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """|diag R| and the column permutation of ``scipy.linalg.qr(a, pivoting=True)`` (LAPACK
+    ``dgeqp3``, the routine scipy calls)."""
+    qr, jpvt, _, _, info = lapack.dgeqp3(a)
+    if info != 0:  # pragma: no cover - dgeqp3 only fails on bad arguments
+        _, r, piv = sla.qr(a, mode="economic", pivoting=True)
+        return np.abs(np.diag(r)), piv
+    return np.abs(qr.diagonal()), jpvt - 1
+
+
+def condition_2(a: np.ndarray) -> float:
+    """``np.linalg.cond(a)``: the 2-norm condition number s_max / s_min (LAPACK ``dgesdd``,
+    singular values only); inf when s_min is 0, NaN when ``a`` is not finite."""
+    if not np.isfinite(a).all():
+        return float("nan")
+    _, sv, _, info = lapack.dgesdd(a, compute_uv=0, full_matrices=0)
+    if info != 0:
+        return float(np.linalg.cond(a))
+    with np.errstate(divide="ignore"):
+        return float(sv[0] / sv[-1])
 
 
 @dataclass(frozen=True)
@@ -64,10 +152,9 @@ def independent_rows(jac: np.ndarray, groups: list[tuple[str, str, range]], sour
     """
     if jac.shape[0] == 0:
         return np.zeros(0, dtype=int)
-    _, r, piv = sla.qr(jac.T, mode="economic", pivoting=True)
-    diag = np.abs(np.diag(r))
+    diag, piv = pivoted_qr(jac.T)
     scale = diag[0] if diag.size else 0.0
-    rank = int(np.sum(diag > RANK_TOL * max(scale, 1e-300)))
+    rank = int(np.count_nonzero(diag > RANK_TOL * max(scale, 1e-300)))
     keep = np.sort(piv[:rank])
     kept = set(keep.tolist())
     for fld, what, own in groups:
@@ -101,28 +188,26 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
     nv, m = system.nv, len(rows)
     names = system.scene.operating_point.independent
     if names:
-        z: list[int] = []
-        for name in names:
-            j = system.joint(name, "operating_point.independent")
-            z.extend(range(j.idx_v, j.idx_v + j.nv))
-        if len(z) != nv - m:
+        independent, dependent = named_independent(system)
+        if len(independent) != nv - m:
             raise SceneError(src, "operating_point.independent",
                              f"expected {nv - m} coordinates (the mechanism has {nv} "
-                             f"coordinates and {m} independent constraints), got {len(z)}")
-        independent = np.array(sorted(z), dtype=int)
+                             f"coordinates and {m} independent constraints), got "
+                             f"{len(independent)}")
         chosen = False
     elif m == 0:
         independent, chosen = np.arange(nv), False
+        dependent = complement(nv, independent)
     else:
         weight = np.ones(nv)
         weight[system.actuated] = 1e-3
-        _, _, piv = sla.qr(G * weight, mode="economic", pivoting=True)
+        piv = pivoted_qr(G * weight)[1]
         independent = np.sort(piv[m:])
         chosen = True
-    dependent = complement(nv, independent)
+        dependent = complement(nv, independent)
     if not check:
         return Partition(rows, dropped, independent, dependent, chosen, float("nan"))
-    cond = float(np.linalg.cond(G[:, dependent])) if m else 1.0
+    cond = condition_2(G[:, dependent]) if m else 1.0
     if not np.isfinite(cond) or cond > 1e12:
         names_z = ", ".join(system.coordinate_names[i] for i in independent)
         raise SceneError(src, "operating_point.independent",
@@ -132,6 +217,96 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
     return Partition(rows, dropped, independent, dependent, chosen, cond)
 
 
+def named_independent(system) -> tuple[np.ndarray, np.ndarray]:
+    """(z, dependent) velocity indices of the scene's ``operating_point.independent`` joints,
+    resolved once per constraint set (a fixed property of the scene).
+
+    Raises:
+        UnknownNameError: a name is not a joint of the robot.
+    """
+    cons = system.constraints
+    cached = getattr(cons, "_named_independent", None)
+    if cached is None:
+        z: list[int] = []
+        for name in system.scene.operating_point.independent:
+            j = system.joint(name, "operating_point.independent")
+            z.extend(range(j.idx_v, j.idx_v + j.nv))
+        independent = np.array(sorted(z), dtype=int)
+        cached = (independent, complement(system.nv, independent))
+        for arr in cached:
+            arr.setflags(write=False)
+        cons._named_independent = cached
+    return cached
+
+
+class AssemblyCache:
+    """Assemblies already solved for one constraint set: (guess, z indices) -> (q0, Phi_q(q0)).
+
+    Newton from a given guess is deterministic, so a guess seen before gets back bit for bit
+    what solving again would give: a gain schedule or a repeated ``linearize`` that comes back
+    to a configuration skips the assembly, and nothing else changes. A guess not seen before
+    is solved from that guess: starting from a nearby solved point instead could land on
+    another assembly branch than the guess picks (tests/test_loop_cache.py shows one) and the
+    model would depend on the call history.
+
+    Held by the :class:`~pinlin.constraints.ConstraintSet` (one per system and contact
+    anchoring, so no entry crosses scenes or anchors), shared by threads (a lock guards the
+    table; the arrays are read-only), at most :data:`CACHE_SIZE` entries, least recently used
+    dropped first.
+    """
+
+    def __init__(self, size: int = CACHE_SIZE) -> None:
+        self.size = size
+        self._table: OrderedDict[bytes, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = self.misses = 0
+
+    @staticmethod
+    def key(q_guess: np.ndarray, independent: np.ndarray) -> bytes:
+        return np.ascontiguousarray(q_guess, dtype=float).tobytes() + b"|" + \
+            np.ascontiguousarray(independent, dtype=np.int64).tobytes()
+
+    def get(self, key: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+        with self._lock:
+            found = self._table.get(key)
+            if found is None:
+                self.misses += 1
+                return None
+            self._table.move_to_end(key)
+            self.hits += 1
+            return found
+
+    def put(self, key: bytes, q0: np.ndarray, jac: np.ndarray) -> None:
+        q0, jac = q0.copy(), jac.copy()
+        q0.setflags(write=False)
+        jac.setflags(write=False)
+        with self._lock:
+            self._table[key] = (q0, jac)
+            self._table.move_to_end(key)
+            while len(self._table) > self.size:
+                self._table.popitem(last=False)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._table.clear()
+            self.hits = self.misses = 0
+
+
+def assembly_cache(system) -> AssemblyCache:
+    """The :class:`AssemblyCache` of the system's constraint set, made on first use."""
+    cons = system.constraints
+    cache = getattr(cons, "_assembly_cache", None)
+    if cache is None:
+        with _CACHE_LOCK:
+            cache = getattr(cons, "_assembly_cache", None)
+            if cache is None:
+                cache = cons._assembly_cache = AssemblyCache()
+    return cache
+
+
+_CACHE_LOCK = threading.Lock()
+
+
 def assemble(system, q_guess: np.ndarray, independent: np.ndarray, *, max_iter: int = 50
              ) -> np.ndarray:
     """Close the loops from ``q_guess`` by Newton on the dependent coordinates, z held.
@@ -139,29 +314,69 @@ def assemble(system, q_guess: np.ndarray, independent: np.ndarray, *, max_iter: 
     Raises:
         AssemblyError: no convergence; the message gives the residual and the worst row.
     """
+    return assemble_with_jacobian(system, q_guess, independent, max_iter=max_iter,
+                                  cache=False)[0]
+
+
+def assemble_with_jacobian(system, q_guess: np.ndarray, independent: np.ndarray, *,
+                           max_iter: int = 50, cache: bool = True,
+                           start: tuple[np.ndarray, np.ndarray] | None = None
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`assemble`, with Phi_q at the assembled q0 (m x nv) from the same kinematics
+    pass; ``cache``: look the guess up in (and add it to) the :class:`AssemblyCache`;
+    ``start``: (Phi, Phi_q) at ``q_guess`` when the caller has them.
+
+    Raises:
+        AssemblyError: no convergence; the message gives the residual and the worst row.
+    """
+    store = assembly_cache(system) if cache else None
+    if store is not None:
+        key = store.key(q_guess, independent) + max_iter.to_bytes(4, "little")
+        found = store.get(key)
+        if found is not None:
+            return found[0].copy(), found[1].copy()
+    q, jac = _newton(system, q_guess, independent, max_iter, start)
+    if store is not None:
+        store.put(key, q, jac)
+    return q, jac
+
+
+def cached_assembly(system, q_guess: np.ndarray, independent: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray] | None:
+    """(q0, Phi_q(q0)) of a guess solved before with these z indices (fresh copies), else
+    None (:class:`AssemblyCache`)."""
+    store = assembly_cache(system)
+    found = store.get(store.key(q_guess, independent) + (50).to_bytes(4, "little"))
+    return None if found is None else (found[0].copy(), found[1].copy())
+
+
+def _newton(system, q_guess: np.ndarray, independent: np.ndarray, max_iter: int,
+            start: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Newton with backtracking on Phi(q) = 0 over the dependent coordinates: (q0, Phi_q(q0))."""
     cons = system.constraints
+    model = system.model
     q = np.array(q_guess, dtype=float)
     dependent = complement(system.nv, independent)
-    phi = cons.residual(q)
+    phi, jac = cons.residual_and_jacobian(q) if start is None else start
     best = np.abs(phi).max(initial=0.0)
+    dq = np.zeros(system.nv)
     for _ in range(max_iter):
         if best <= ASSEMBLY_TOL:
-            return q
-        J = cons.jacobian(q)[:, dependent]
-        step, *_ = np.linalg.lstsq(J, -phi, rcond=None)
-        dq = np.zeros(system.nv)
-        dq[dependent] = step
+            return q, jac
+        dq[dependent] = lstsq(jac[:, dependent], -phi)
         # Backtracking keeps Newton from leaving the basin of the branch the guess picked.
         for scale in (1.0, 0.5, 0.25, 0.125, 0.0625):
-            trial = pin.integrate(system.model, q, scale * dq)
-            phi_t = cons.residual(trial)
-            if np.abs(phi_t).max() < best:
-                q, phi, best = trial, phi_t, np.abs(phi_t).max()
+            trial = pin.integrate(model, q, scale * dq)
+            phi_t, jac_t = cons.residual_and_jacobian(trial)
+            worst_t = np.abs(phi_t).max()
+            if worst_t < best:
+                q, phi, jac, best = trial, phi_t, jac_t, worst_t
                 break
         else:
             break
     if best <= 1e3 * ASSEMBLY_TOL:
-        return q
+        return q, jac
     worst = int(np.argmax(np.abs(phi)))
     raise AssemblyError(f"scene '{system.scene.name}': the loops do not close from the given q: "
                         f"residual {phi[worst]:.3g} (m or rad) in row '{cons.row_names[worst]}' "
@@ -185,5 +400,8 @@ def projection(jac_rows: np.ndarray, part: Partition, basis: str = "partitioned"
     R = np.zeros((nv, len(z)))
     R[z, np.arange(len(z))] = 1.0
     if len(d):
-        R[d] = -np.linalg.solve(jac_rows[:, d], jac_rows[:, z])
+        _, _, x, info = lapack.dgesv(jac_rows[:, d], jac_rows[:, z])  # np.linalg.solve's
+        if info != 0:
+            raise np.linalg.LinAlgError("Singular matrix")
+        R[d] = -x
     return R

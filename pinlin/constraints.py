@@ -36,6 +36,7 @@ contact the force the world applies to the robot.
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -180,6 +181,16 @@ class ConstraintSet:
         self._support = self._support_columns()
         self._lie_blocks = [slice(j.idx_v, j.idx_v + j.nv) for j in system.joints.values()
                             if j.nv > 1 and j.nq != j.nv]
+        # (frame id, sign, first row) of every moving closure frame, and whether the batched
+        # Hessian applies: point closures only, every support joint 1-DoF.
+        self._signed_frames = [(f, s, row) for kind, f1, f2, row, _ in self._closures
+                               for f, s in ((f1, 1.0), (f2, -1.0)) if f is not None]
+        self._batched_hessian = (not self.has_welds and
+                                 all(kin_nv == 1 for kin_nv in self._support_joint_nv()))
+        # Made on first use by pinlin.assembly: the scene's named independent coordinates and
+        # the cache of solved assemblies (one per constraint set: per system and anchoring).
+        self._named_independent: tuple[np.ndarray, np.ndarray] | None = None
+        self._assembly_cache = None
 
     def _add(self, names: list[str], kind: str, f1: int, f2: int | None,
              anchor: pin.SE3 | None, label: str) -> range:
@@ -232,29 +243,50 @@ class ConstraintSet:
     # ----------------------------------------------------------------------------------------
     def residual(self, q: np.ndarray) -> np.ndarray:
         """Phi(q) [m, rad]."""
-        out = np.zeros(self.size)
         if self._closures:
             kin, kd = self.system.kin_model, self.system.kin_data
             pin.framesForwardKinematics(kin, kd, self.system.kin_q(q))
-            for kind, f1, f2, row, anchor in self._closures:
-                m1, m2 = kd.oMf[f1], (kd.oMf[f2] if f2 is not None else anchor)
-                out[row:row + 3] = m1.translation - m2.translation
-                if kind == "weld":
-                    out[row + 3:row + 6] = pin.log3(m1.rotation @ m2.rotation.T)
+            out = self._closure_residual(kd)
+        else:
+            out = np.zeros(self.size)
+        self._mimic_residual(q, out)
+        return out
+
+    def _closure_residual(self, kd: pin.Data) -> np.ndarray:
+        """Phi of the loop and contact rows from the frame placements in ``kd`` (mimic rows
+        zero) [m, rad]."""
+        out = np.zeros(self.size)
+        for kind, f1, f2, row, anchor in self._closures:
+            m1, m2 = kd.oMf[f1], (kd.oMf[f2] if f2 is not None else anchor)
+            out[row:row + 3] = m1.translation - m2.translation
+            if kind == "weld":
+                out[row + 3:row + 6] = pin.log3(m1.rotation @ m2.rotation.T)
+        return out
+
+    def _mimic_residual(self, q: np.ndarray, out: np.ndarray) -> None:
+        """Write the mimic rows of Phi(q) into ``out`` [rad or m]."""
         for k, ((iq_m, iq_j), (_, _, mult, off, cm, cj)) in enumerate(
                 zip(self._mimic_q, self._mimic_rows, strict=True)):
             row = len(self.row_names) - len(self._mimic_rows) + k
             out[row] = _angle(q, iq_m, cm) - mult * _angle(q, iq_j, cj) - off
-        return out
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Phi_q (m x nv), tangent space."""
+        return self.residual_and_jacobian(q)[1]
+
+    def residual_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(Phi(q), Phi_q(q)) from one kinematics pass (``computeJointJacobians`` computes
+        the placements :meth:`residual` reads) [m, rad; m/rad, -]."""
         sysm = self.system
+        plan = self._point_plan
+        if plan is not None:
+            return self._point_residual_and_jacobian(q, plan)
         out = np.zeros((self.size, sysm.nv))
         if self._closures:
             kin, kd = sysm.kin_model, sysm.kin_data
             pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
             pin.updateFramePlacements(kin, kd)
+            phi = self._closure_residual(kd)
             cols = sysm.kin_columns
             for kind, f1, f2, row, anchor in self._closures:
                 J1 = pin.getFrameJacobian(kin, kd, f1, LWA)[:, cols]
@@ -269,11 +301,62 @@ class ConstraintSet:
                 if kind == "weld":
                     E = kd.oMf[f1].rotation @ kd.oMf[f2].rotation.T
                     out[row + 3:row + 6] = pin.Jlog3(E) @ E.T @ (J1[3:] - E @ J2[3:])
+        else:
+            phi = np.zeros(self.size)
+        self._mimic_residual(q, phi)
         first = self.size - len(self._mimic_rows)
         for k, (iv_m, iv_j, mult, _, _, _) in enumerate(self._mimic_rows):
             out[first + k, iv_m] += 1.0
             out[first + k, iv_j] -= mult
-        return out
+        return phi, out
+
+    def _point_residual_and_jacobian(self, q: np.ndarray, plan: tuple
+                                     ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`residual_and_jacobian` of point loops and contacts (and mimic rows), every
+        frame read once: Phi = P p - p_anchor and Phi_q = P Jp with P the fixed +-1 map from
+        the stacked frame positions p (and their linear Jacobians Jp) to the rows, the same
+        differences as row by row, exactly."""
+        sysm = self.system
+        kin, kd = sysm.kin_model, sysm.kin_data
+        frames, P, anchor = plan
+        pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
+        position = np.array([pin.updateFramePlacement(kin, kd, f).translation for f in frames])
+        J = np.concatenate([pin.getFrameJacobian(kin, kd, f, LWA)[:3] for f in frames])
+        if sysm.rotation is not None:
+            J = J[:, sysm.kin_columns]
+        phi = P @ position.reshape(-1)
+        phi -= anchor
+        jac = P @ J
+        if self._mimic_rows:
+            self._mimic_residual(q, phi)
+            first = self.size - len(self._mimic_rows)
+            for k, (iv_m, iv_j, mult, _, _, _) in enumerate(self._mimic_rows):
+                jac[first + k, iv_m] += 1.0
+                jac[first + k, iv_j] -= mult
+        return phi, jac
+
+    @functools.cached_property
+    def _point_plan(self) -> tuple[list[int], np.ndarray, np.ndarray] | None:
+        """(moving frames, P, anchor positions per row) for
+        :meth:`_point_residual_and_jacobian`; None with a weld or without closures. P maps
+        the 3F stacked frame coordinates to all m rows (mimic rows: zero, filled after)."""
+        if not self._closures or self.has_welds:
+            return None
+        frames: list[int] = []
+        P = np.zeros((self.size, 0))
+        columns: list[np.ndarray] = []
+        anchor = np.zeros(self.size)
+        for _, f1, f2, row, fixed in self._closures:
+            for f, sign in ((f1, 1.0), (f2, -1.0)):
+                if f is None:
+                    anchor[row:row + 3] = fixed.translation
+                    continue
+                block = np.zeros((self.size, 3))
+                block[row:row + 3] = sign * np.eye(3)
+                frames.append(f)
+                columns.append(block)
+        P = np.hstack(columns) if columns else P
+        return frames, P, anchor
 
     @property
     def has_welds(self) -> bool:
@@ -343,6 +426,72 @@ class ConstraintSet:
         closures' support gives d(Phi_q)/d(dq_j) (at v = e_j, d/dt(J) is dJ/dq_j), the weld
         rotation rows adding -1/2 d_j x d_k - d_j x w2_k.
         """
+        nv = self.system.nv
+        if not self._closures or not np.any(lam[:self._loop_rows()]):
+            return np.zeros((nv, nv))
+        if self._batched_hessian:
+            return self._point_hessian(q, lam)
+        return self.hessian_by_time_variation(q, lam)
+
+    def _point_hessian(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """:meth:`hessian` of point loops and contacts on 1-DoF joints, batched: one
+        ``computeJointJacobians`` and two frame Jacobians per closure.
+
+        On a chain of 1-DoF joints with constant motion axes (revolute, prismatic, continuous,
+        helical) the world twist S_k of joint k moves only with its ancestors, dS_k/dq_j =
+        S_j x S_k, and a point p of the frame moves as dp/dq_j = Jp_j. Together (Jacobi
+        identity) d(Jp_k)/dq_j = w_a x Jp_b with a the ancestor of the pair (j, k) and b the
+        other, w the angular and Jp the point's linear Jacobian columns (LOCAL_WORLD_ALIGNED);
+        both are zero off the frame's support. Velocity indices grow from root to leaf, so in
+        X[j, k] = lam . (w_j x Jp_k) = -w_j . ([lam]x Jp_k) the pair's ancestor is the
+        smaller index: the Hessian is triu(X) + triu(X, 1)^T, summed over every frame (signed
+        +1 for frame1, -1 for frame2) in one product of stacked 3-row blocks.
+        """
+        sysm = self.system
+        kin, kd = sysm.kin_model, sysm.kin_data
+        pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
+        frames, lam_rows, skew_at, skew_sign = self._hessian_plan
+        J = np.concatenate([pin.getFrameJacobian(kin, kd, fid, LWA) for fid in frames])
+        if sysm.rotation is not None:
+            J = J[:, sysm.kin_columns]
+        n = J.shape[0] // 2  # 3 rows per frame
+        # Block-diagonal -s [lam]x per frame: Y = Jp x (s lam) for each frame's 3 rows.
+        skew = np.zeros(n * n)
+        skew[skew_at] = skew_sign * lam[lam_rows]
+        point = J.reshape(-1, 2, 3, J.shape[1])  # (frame, linear | angular, xyz, nv)
+        X = point[:, 1].reshape(n, -1).T @ (skew.reshape(n, n) @ point[:, 0].reshape(n, -1))
+        upper, strict = self._triangles
+        return X * upper + (X * strict).T
+
+    @functools.cached_property
+    def _hessian_plan(self) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray]:
+        """For :meth:`_point_hessian`: the closure frames, and where the signed entries of lam
+        go in the block-diagonal matrix of -s [lam]x (flat index into 3F x 3F, the lam row
+        each reads, and the sign s times the cross-product sign)."""
+        frames, rows, at, sign = [], [], [], []
+        # -[l]x = [[0, l_z, -l_y], [-l_z, 0, l_x], [l_y, -l_x, 0]]
+        pattern = ((0, 1, 2, 1.0), (0, 2, 1, -1.0), (1, 0, 2, -1.0), (1, 2, 0, 1.0),
+                   (2, 0, 1, 1.0), (2, 1, 0, -1.0))
+        n = 3 * len(self._signed_frames)
+        for i, (fid, s, row) in enumerate(self._signed_frames):
+            frames.append(fid)
+            for r, c, axis, sg in pattern:
+                at.append((3 * i + r) * n + 3 * i + c)
+                rows.append(row + axis)
+                sign.append(s * sg)
+        return frames, np.array(rows), np.array(at), np.array(sign)
+
+    @functools.cached_property
+    def _triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Masks of the upper triangle of an nv x nv matrix, with and without the diagonal
+        (np.triu builds its mask on every call)."""
+        nv = self.system.nv
+        upper = np.triu(np.ones((nv, nv)))
+        return upper, upper - np.eye(nv)
+
+    def hessian_by_time_variation(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """:meth:`hessian` by one ``computeJointJacobiansTimeVariation`` per support coordinate
+        (any joint and closure type; the reference the batched path is tested against)."""
         sysm = self.system
         nv = sysm.nv
         out = np.zeros((nv, nv))  # out[j, k] = lam . d(Phi_q e_k)/d(dq_j)
@@ -383,6 +532,19 @@ class ConstraintSet:
     # ----------------------------------------------------------------------------------------
     def _loop_rows(self) -> int:
         return self.size - len(self._mimic_rows)
+
+    def _support_joint_nv(self) -> list[int]:
+        """nv of every kinematic-model joint that moves some loop or contact frame (0 for a
+        joint that is not revolute, prismatic or helical: its axis is not constant)."""
+        kin = self.system.kin_model
+        out = []
+        for _, f1, f2, _, _ in self._closures:
+            for fid in (f1, f2):
+                if fid is not None:
+                    out.extend(kin.joints[sj].nv if kin.joints[sj].shortname().startswith(
+                        ("JointModelR", "JointModelP", "JointModelH")) else 0
+                        for sj in kin.supports[kin.frames[fid].parentJoint] if sj != 0)
+        return out
 
     def _support_columns(self) -> list[int]:
         """Velocity indices of the joints that move some loop or contact frame (system

@@ -35,7 +35,16 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .assembly import Partition, assemble, partition, projection
+from .assembly import (
+    Partition,
+    assemble,
+    assemble_with_jacobian,
+    cached_assembly,
+    lstsq_rank,
+    named_independent,
+    partition,
+    projection,
+)
 from .contacts import statics_notes
 from .exceptions import EquilibriumError, SceneError
 from .operating_point import OperatingPoint, residual_tolerance
@@ -92,26 +101,60 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     spec = system.scene.operating_point
     cons = system.constraints
     notes: list[str] = []
-    part = partition(system, q_guess, check=False)  # conditioning is judged once assembled
-    q0 = assemble(system, q_guess, part.independent) if cons else q_guess
+    jac = None
+    if cons and spec.independent:
+        # A guess solved before comes back from the assembly cache, bit for bit (its
+        # partition passed then: it depends on the guess alone).
+        found = cached_assembly(system, q_guess, named_independent(system)[0])
+        if found is not None:
+            q0, jac = found
+    if jac is None:
+        start = cons.residual_and_jacobian(q_guess) if cons else None
+        # conditioning is judged once assembled
+        part = partition(system, q_guess, None if start is None else start[1], check=False)
+        if cons:
+            q0, jac = assemble_with_jacobian(system, q_guess, part.independent, start=start)
+        else:
+            q0 = q_guess
+    else:
+        part = None
     if spec.solve == "positions":
         u0 = input_vector(system, spec.u)
+        if part is None:
+            part = partition(system, q_guess, check=False)
         q0, part = _passive_equilibrium(system, q0, part, u0)
-    jac = cons.jacobian(q0)
+        jac = None
+    if jac is None:
+        jac = cons.jacobian(q0)
     part = partition(system, q0, jac)
     G = jac[part.rows]
     f = _held_force(system, q0)
     S = system.input_matrix
+    # The statics use every row that can carry a force: the independent rows, and redundant
+    # rows that are not identically zero (two feet holding one body: the split among them is
+    # then a family, and the least-norm member over all of them is reported).
+    kept = set(int(r) for r in part.rows)
+    extra = [r for r in range(jac.shape[0]) if r not in kept and np.any(jac[r])]
+    rows = np.concatenate([np.asarray(part.rows, dtype=int), np.array(extra, dtype=int)])
+    Gs = jac[rows] if extra else G
+    free = 0
     if spec.solve in ("positions", "forces"):
         if spec.solve == "forces":
             u0 = input_vector(system, spec.u)
-        lam_k = np.linalg.lstsq(G.T, f - S @ u0, rcond=None)[0] if len(part.rows) else \
-            np.zeros(0)
+        if len(rows):
+            lam_k, rank = lstsq_rank(Gs.T, f - S @ u0)
+            free = len(rows) - rank
+        else:
+            lam_k = np.zeros(0)
+        if free:
+            notes.append(f"the constraint forces that hold q0 with these inputs are not unique "
+                         f"(redundant rows: a family of {free} dimension"
+                         f"{'s' if free > 1 else ''}): the least-norm split is reported")
     else:
-        SG = np.hstack([S, G.T])
-        sol, _, rank, _ = np.linalg.lstsq(SG, f, rcond=None)  # rank as matrix_rank's
+        SG = np.hstack([S, Gs.T])
+        sol, rank = lstsq_rank(SG, f)  # rank as matrix_rank's
         u0, lam_k = sol[:S.shape[1]], sol[S.shape[1]:]
-        free = S.shape[1] + len(part.rows) - rank
+        free = S.shape[1] + len(rows) - rank
         if free:
             why = ("redundant support" if cons.contacts and len(part.rows) > 0 else
                    "redundant actuation")
@@ -119,9 +162,9 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
                          f"({why}: a family of {free} dimension{'s' if free > 1 else ''}): the "
                          "least-norm [u0; lam] is reported; give your own split with "
                          "operating_point.solve = \"forces\" and the inputs u")
-    residual = f - S @ u0 - G.T @ lam_k
+    residual = f - S @ u0 - Gs.T @ lam_k
     lam = np.zeros(cons.size)
-    lam[part.rows] = lam_k
+    lam[rows] = lam_k
     scale = float(np.abs(f).max(initial=0.0))
     tol = residual_tolerance(scale)
     worst = int(np.argmax(np.abs(residual))) if residual.size else 0
@@ -143,14 +186,15 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
                 f"of {residual[worst]:.6g} N or N*m along '{name}' is left over (tolerance "
                 f"{tol:.1e}){extra}", residual, system.coordinate_names)
     if cons:
-        zn = ", ".join(system.coordinate_names[i] for i in part.independent)
+        zn = (", ".join(system.coordinate_names[i] for i in part.independent)
+              or "none (the constraints hold every coordinate)")
         notes.append(f"independent coordinates{' (chosen by pinlin)' if part.chosen else ''}: "
                      f"{zn}")
         if part.dropped:
-            contact_rows = any(n.startswith("contact:") for n in part.dropped)
-            notes.append(f"redundant constraint rows dropped: {', '.join(part.dropped)}"
-                         + (" (their forces are reported as zero: any split along them "
-                            "balances as well)" if contact_rows else ""))
+            notes.append(f"redundant constraint rows left out of the coordinates: "
+                         f"{', '.join(part.dropped)}"
+                         + (" (they still carry their share of the least-norm forces)"
+                            if extra else ""))
         if part.condition > 1e6:
             notes.append(f"near a singular position: the dependent-coordinate Jacobian has "
                          f"condition {part.condition:.3g}")

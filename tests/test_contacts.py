@@ -97,6 +97,22 @@ def test_box_on_a_blade_is_a_hinged_inverted_pendulum():
         np.testing.assert_allclose(forces[name][0], [0.0, 0.0, MASS * G / 2], atol=1e-12)
 
 
+@pytest.mark.parametrize("frames", [("blade_front", "blade_back"),
+                                    ("box", "blade_front", "blade_back")])
+def test_redundant_point_contacts_share_the_weight_least_norm(frames):
+    """Points in one vertical plane through the centre of mass hold the box redundantly: the
+    least-norm forces minimize sum |f_i|^2 under the balance A f = (0, 0, m g, 0, 0, 0); the
+    equal split f_i = (0, 0, m g / n) balances (the points' x are symmetric about the centre
+    of mass) and is m g / n times the force row of A, so lies in A's row space: it is the
+    least-norm one. pinlin splits over every row, the redundant ones included."""
+    model = pinlin.linearize(_box([{"name": f, "frame": f} for f in frames]))
+    forces = model.operating_point.contact_forces
+    for f in frames:
+        np.testing.assert_allclose(forces[f][0], [0.0, 0.0, MASS * G / len(frames)], rtol=0,
+                                   atol=1e-12)
+    assert any("not unique" in n and "least-norm" in n for n in model.operating_point.notes)
+
+
 def test_welded_box_has_no_state_and_nothing_breaks(capfd, tmp_path):
     """A weld holds all six base coordinates: a model with zero states, in every formulation
     (penalty and canonical keep the 12 states of the dependent coordinates, all constraint

@@ -37,7 +37,9 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 import scipy.linalg as sla
+from scipy.linalg import lapack
 
+from ..arrays import read_only
 from ..assembly import projection
 from ..conditioning import AccuracyWarning, warn_if_ill_conditioned
 from ..contacts import limb_conditions, warn_singular_limbs
@@ -60,20 +62,42 @@ from .independent import output_matrices
 def first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, Bu: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """A = [[0, I], [-M^-1 K, -M^-1 C]], B = [[0], [M^-1 Bu]] with one Cholesky factor of M."""
+    return _first_order(M, C, K, Bu)[:2]
+
+
+def _first_order(M: np.ndarray, C: np.ndarray | None, K: np.ndarray, Bu: np.ndarray,
+                 with_inverse: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`first_order` by LAPACK directly (``dpotrf``, ``dpotrs``: what
+    ``scipy.linalg.cho_factor``/``cho_solve`` call, without their checks; M symmetric, only
+    its upper triangle read, as there). ``C`` None: zero. ``with_inverse``: M^-1 too, from
+    the same factor and solve."""
     n = M.shape[0]
+    m = Bu.shape[1]
     if n == 0:  # nothing moves (a welded body): A is 0 x 0, B has no rows
-        return np.zeros((0, 0)), np.zeros((0, Bu.shape[1]))
-    try:
-        factor = sla.cho_factor(M)
-    except np.linalg.LinAlgError:
+        return np.zeros((0, 0)), np.zeros((0, m)), (np.zeros((0, 0)) if with_inverse
+                                                     else None)
+    if not np.isfinite(M).all():
+        raise ValueError("array must not contain infs or NaNs")  # cho_factor's check
+    factor, info = lapack.dpotrf(M, lower=0, clean=0)
+    if info != 0:
         raise PinlinError("the (reduced) mass matrix is not positive definite: some coordinate "
-                          "moves no inertia") from None
+                          "moves no inertia")
+    parts = [K, np.zeros_like(K) if C is None else C, Bu]
+    if with_inverse:
+        parts.append(np.eye(n))
+    rhs = np.hstack(parts)
+    if not np.isfinite(rhs).all():
+        raise ValueError("array must not contain infs or NaNs")  # cho_solve's check
+    X, info = lapack.dpotrs(factor, rhs, lower=0)
+    if info != 0:  # pragma: no cover - only bad arguments
+        raise PinlinError(f"LAPACK dpotrs failed (info {info})")
     A = np.zeros((2 * n, 2 * n))
     A[:n, n:] = np.eye(n)
-    A[n:] = -sla.cho_solve(factor, np.hstack([K, C]))
-    B = np.zeros((2 * n, Bu.shape[1]))
-    B[n:] = sla.cho_solve(factor, Bu)
-    return A, B
+    A[n:] = -X[:, :2 * n]
+    B = np.zeros((2 * n, m))
+    B[n:] = X[:, 2 * n:2 * n + m]
+    return A, B, (X[:, 2 * n + m:] if with_inverse else None)
 
 
 def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarray,
@@ -260,21 +284,29 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     """Independent-coordinate model (9.1.1) of a constrained system."""
     if basis not in BASES:
         raise PinlinError(f"unknown basis '{basis}'; expected one of {', '.join(BASES)}")
-    terms, C = _terms(system, op, derivatives, step, estimate_error)
+    terms = second_order_terms(system, op, derivatives, step, estimate_error)
     R = projection(cp.jacobian, cp.partition, basis)
-    Mz, Cz, Kz = R.T @ terms.M @ R, R.T @ C @ R, R.T @ terms.K @ R
+    Rt = R.T
+    Mz = Rt @ terms.M @ R
     Mz = 0.5 * (Mz + Mz.T)
-    Bz = R.T @ _input_matrix(system, terms)
-    A, B = first_order(Mz, Cz, Kz, Bz)
-    mass_condition = float(np.linalg.cond(Mz, 1)) if Mz.size else 1.0
+    Kz = Rt @ terms.K @ R
+    Cz = None if terms.C is None else Rt @ terms.C @ R
+    # R^T S with S the 0/1 selection is R's actuated rows, exactly.
+    Bz = R[system.actuated].T.copy() if terms.Bu is None else Rt @ terms.Bu
+    A, B, Mz_inv = _first_order(Mz, Cz, Kz, Bz, with_inverse=True)
+    if Cz is None:
+        Cz = np.zeros_like(Mz)
+    # np.linalg.cond(Mz, 1): ||Mz||_1 ||Mz^-1||_1, the inverse from the same Cholesky factor.
+    mass_condition = (float(np.abs(Mz).sum(axis=0).max() * np.abs(Mz_inv).sum(axis=0).max())
+                      if Mz.size else 1.0)
     warn_if_ill_conditioned("reduced mass matrix", mass_condition, system.scene.name,
                             stacklevel=5)
     alt = _alt(terms)
     A_alt = rounding = None
     if alt is not None:
-        A_alt = first_order(Mz, R.T @ alt[1] @ R, R.T @ alt[0] @ R, Bz)[0]
+        A_alt = first_order(Mz, Rt @ alt[1] @ R, Rt @ alt[0] @ R, Bz)[0]
         # dA = -Mz^-1 R^T [dK, dC] R: rounding in K, C amplified by Mz^-1 R^T and R.
-        X = sla.solve(Mz, R.T, assume_a="pos")
+        X = sla.solve(Mz, Rt, assume_a="pos")
         rounding = max(propagated_noise(X, sigma, R) for sigma in terms.rounding)
     if basis == "partitioned":
         coords = [system.coordinate_names[i] for i in cp.partition.independent]
@@ -296,10 +328,14 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
         change, d = assembly_sensitivity(system, op, cp, A)
         info["condition"]["operating_point_sensitivity"] = change
         _warn_sensitive(system, change, d)
-    return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], B.shape[1])),
-                       state_names=states, input_names=system.input_names,
-                       output_names=out_names, M=Mz, C_damp=Cz, K=Kz, Bu=Bz,
-                       operating_point=op.with_outputs(y0), name=system.scene.name, info=info)
+    # Built here with consistent shapes: the trusted constructor keeps the finite and
+    # distinct-name checks and skips the rest.
+    return LinearModel.assembled(
+        A=read_only(A), B=read_only(B), C=read_only(Cout),
+        D=read_only(np.zeros((Cout.shape[0], B.shape[1]))), E=None, F=None,
+        state_names=states, input_names=system.input_names, output_names=tuple(out_names),
+        M=read_only(Mz), C_damp=read_only(Cz), K=read_only(Kz), Bu=read_only(Bz), G=None,
+        operating_point=op.with_outputs(y0), name=system.scene.name, info=info)
 
 
 def penalty_parameters(alpha: float | None, mu: float | None, omega: float | None
