@@ -39,6 +39,7 @@ import pinocchio as pin
 from .chart import PLANAR
 from .coordinates import FREE_FLYER, SPHERICAL
 from .exceptions import ModelError, PinlinError
+from .mass_bound import diagonal_bound, suspect
 from .system import System
 
 #: Points per block of the batch kernel: a block's results (Talos: 65 kB a point) are screened
@@ -232,7 +233,10 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
          options: Options) -> None:
     """Compute the models of points ``lo:hi`` into ``arrays`` (:meth:`Layout.views` or
     :meth:`Layout.allocate`, zero-filled; inputs q, v, u already there) and screen them:
-    ``bad[k]`` = 1 where point k has NaN or inf, or an M^-1 not positive on its diagonal.
+    ``bad[k]`` = 1 where point k has NaN or inf, or where M(q_k) may be singular to working
+    precision: n sum_i b_i (M^-1)_ii reaches the refusal condition, b the configuration-free
+    bound on diag M of :mod:`pinlin.mass_bound` (an M^-1 not positive on its diagonal
+    included); :func:`check` decides those points exactly (``System.mass_inverse``).
 
     Raises:
         PinlinError: per-point path only, from :func:`pinlin.linearize` (a singular mass
@@ -254,12 +258,14 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     kinematic_rows(arrays["A"][lo:hi], V, plan)
     arrays["f0"][lo:hi, :system.nv] = V
     minv_diag = np.empty((min(BLOCK, hi - lo), system.nv))
+    bound = diagonal_bound(system, Q)
+    limit = system._refuse_limit
     for start in range(lo, hi, BLOCK):  # blocks small enough to screen while in cache
         stop = min(hi, start + BLOCK)
         _fill_batch(system, arrays, start, stop, plan, tau[start - lo:stop - lo], minv_diag)
         if system.outputs is not None:
             _fill_outputs(system, arrays, start, stop)
-        _screen(system, arrays, start, stop, ~(minv_diag[:stop - start].min(axis=1) > 0.0))
+        _screen(system, arrays, start, stop, suspect(bound, minv_diag[:stop - start], limit))
 
 
 def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,

@@ -43,15 +43,19 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
+from . import loop_kernels as lk
+from . import trajectory_assembly
 from .assembly import ASSEMBLY_TOL, Partition, assemble, partition
 from .conditioning import AccuracyWarning
 from .exceptions import ModelError, PinlinError
+from .formulations import moving_batch
 from .formulations.constrained import constrained_effects
+from .formulations.independent import output_matrices
 from .formulations.motion import linearize_moving, refuse_unsupported, state_at
 from .system import System
 
@@ -61,6 +65,9 @@ REFUSE_CONDITION = 1e12
 #: Condition of Phi_d above which an AccuracyWarning names the worst point (the level at which
 #: a single model's notes say "near a singular position").
 WARN_CONDITION = 1e6
+#: Points per stacked block of :func:`fill` (bounds the temporaries: the delta's block of
+#: third-derivative terms is 64 x 6 x 12 x 3 numbers per array).
+BLOCK = 64
 
 
 @dataclass(frozen=True)
@@ -147,9 +154,55 @@ def close_loops(system: System, Q: np.ndarray
     except PinlinError as exc:
         raise _at_point(exc, 0) from None
     frozen = FrozenPartition.of(part)
-    rows, z = part.rows, part.independent
-    dep = part.dependent
     out[0], condition[0] = q, part.condition
+    plan = lk.plan(system)
+    if plan is not None and len(part.dependent):
+        _close_stacked(system, plan, Q, frozen, out, condition)
+    else:
+        _close_per_point(system, Q, frozen, out, condition)
+    for k in range(N):
+        moved[k] = np.linalg.norm(pin.difference(model, Q[k], out[k]))
+    worst = int(np.argmax(condition))
+    if condition[worst] > WARN_CONDITION:
+        warnings.warn(AccuracyWarning(
+            f"scene '{system.scene.name}': near a singular position at trajectory point "
+            f"{worst}: the Jacobian of the dependent coordinates (independent coordinates "
+            f"{_names(system, frozen)}) has condition {condition[worst]:.3g}; about "
+            f"{max(16 - np.log10(condition[worst]), 0):.0f} significant digits of that "
+            "point's model are reliable", float(condition[worst])), stacklevel=3)
+    return out, frozen, condition, moved
+
+
+def _close_stacked(system: System, plan: lk.ClosurePlan, Q: np.ndarray,
+                   frozen: FrozenPartition, out: np.ndarray, condition: np.ndarray) -> None:
+    """Points 1.. by :func:`pinlin.trajectory_assembly.close`, the conditions of Phi_d in
+    one stacked SVD; the first singular point (before a point that failed to assemble) is
+    refused, as :func:`_close_per_point` does."""
+    rows = np.array(frozen.rows, dtype=int)
+    dep = np.array(frozen.dependent, dtype=int)
+    z = np.array(frozen.independent, dtype=int)
+    solved, J, failed, exc = trajectory_assembly.close(system, plan, Q, out[0], rows, z, dep)
+    last = len(Q) if failed is None else failed
+    Gd = lk.jacobian(plan, J[1:last])[:, rows][:, :, dep]
+    with np.errstate(all="ignore"):
+        condition[1:last] = np.linalg.cond(Gd) if len(Gd) else ()
+    bad = np.flatnonzero(~(condition[:last] <= REFUSE_CONDITION))
+    if bad.size:
+        k = int(bad[0])
+        raise ModelError(_singular_message(system, frozen, k, condition[k]))
+    if failed is not None:
+        if isinstance(exc, PinlinError):
+            raise _at_point(exc, failed) from None
+        raise exc
+    out[:] = solved
+
+
+def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
+                     out: np.ndarray, condition: np.ndarray) -> None:
+    """Points 1.. one by one: :func:`pinlin.assembly.assemble` from the previous point's
+    dependent coordinates, the condition of Phi_d checked at each."""
+    cons, model, N = system.constraints, system.model, len(Q)
+    rows, z, dep = frozen.rows, np.array(frozen.independent), np.array(frozen.dependent)
     for k in range(1, N):
         q = Q[k]
         if np.abs(cons.residual(q)).max(initial=0.0) > ASSEMBLY_TOL:
@@ -166,17 +219,6 @@ def close_loops(system: System, Q: np.ndarray
         if not condition[k] <= REFUSE_CONDITION:  # NaN too
             raise ModelError(_singular_message(system, frozen, k, condition[k]))
         out[k] = q
-    for k in range(N):
-        moved[k] = np.linalg.norm(pin.difference(model, Q[k], out[k]))
-    worst = int(np.argmax(condition))
-    if condition[worst] > WARN_CONDITION:
-        warnings.warn(AccuracyWarning(
-            f"scene '{system.scene.name}': near a singular position at trajectory point "
-            f"{worst}: the Jacobian of the dependent coordinates (independent coordinates "
-            f"{_names(system, frozen)}) has condition {condition[worst]:.3g}; about "
-            f"{max(16 - np.log10(condition[worst]), 0):.0f} significant digits of that "
-            "point's model are reliable", float(condition[worst])), stacklevel=3)
-    return out, frozen, condition, moved
 
 
 def _names(system: System, frozen: FrozenPartition) -> str:
@@ -203,6 +245,61 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     Raises:
         PinlinError: from the model of a point, its message starting with the point's index.
     """
+    plan = lk.plan(system)
+    if plan is not None:
+        for start in range(lo, hi, BLOCK):
+            stop = min(hi, start + BLOCK)
+            try:
+                _fill_block(system, plan, arrays, start, stop, frozen)
+            except np.linalg.LinAlgError:  # a singular point: find it and say why
+                _fill_points(system, arrays, start, stop, frozen)
+        return
+    _fill_points(system, arrays, lo, hi, frozen)
+
+
+def _fill_block(system: System, plan: lk.ClosurePlan, arrays: Mapping[str, np.ndarray],
+                lo: int, hi: int, frozen: FrozenPartition) -> None:
+    """Points lo:hi at once (:mod:`pinlin.formulations.moving_batch`)."""
+    rows = np.array(frozen.rows, dtype=int)
+    z = np.array(frozen.independent, dtype=int)
+    dep = np.array(frozen.dependent, dtype=int)
+    Q, V = arrays["q"][lo:hi], arrays["v"][lo:hi]
+    st = moving_batch.states(system, plan, Q, V, arrays["u"][lo:hi], rows)
+    mats = moving_batch.models(system, plan, st, rows, z, dep)
+    arrays["A"][lo:hi] = mats.A
+    arrays["B"][lo:hi] = mats.B
+    arrays["f0"][lo:hi] = mats.f0
+    arrays["vp"][lo:hi] = st.v
+    arrays["acc"][lo:hi] = st.a
+    arrays["lam"][lo:hi] = st.lam
+    arrays["dv"][lo:hi] = np.linalg.norm(st.correction, axis=1)
+    C, y = arrays.get("C"), arrays.get("y")
+    if y is not None:
+        Cout = np.empty((hi - lo, y.shape[1], 2 * system.nv))
+        for k in range(hi - lo):
+            Cout[k], _, _, y[lo + k] = output_matrices(system, _State(st.q[k], st.v[k]))
+        if C is not None:
+            C[lo:hi] = moving_batch.reduce_outputs(Cout, mats.R, mats.W)
+    bad = np.zeros(hi - lo, dtype=bool)
+    for key in ("A", "B", "f0", "C"):
+        stack = arrays.get(key)
+        if stack is not None:
+            bad |= ~np.isfinite(stack[lo:hi].reshape(hi - lo, -1).sum(axis=1))
+    if bad.any():
+        k = lo + int(np.flatnonzero(bad)[0])
+        raise ModelError(f"trajectory point {k}: scene '{system.scene.name}': the linear "
+                         "model has NaN or inf; a model with NaN or inf is never returned")
+
+
+class _State(NamedTuple):
+    q: np.ndarray
+    v: np.ndarray
+
+
+def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
+                 frozen: FrozenPartition) -> None:
+    """Points lo:hi one by one (:func:`~pinlin.formulations.motion.state_at`,
+    :func:`~pinlin.formulations.motion.linearize_moving`)."""
     cons = system.constraints
     Q, V, U, cond = arrays["q"], arrays["v"], arrays["u"], arrays["cond"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]

@@ -25,12 +25,16 @@ differentiating G R = 0). Hence, in x = [dz; dz']::
     A = [[0, I], [(F_q R + F_v W)[z], (F_v R)[z]]],   B = [[0], [F_u[z]]],   f0 = [z0'; a0[z]]
 
 At rest (v0 = 0, a0 = 0) c_q = c_v = W = 0 and this is the static model R^T M R, R^T K R.
-Pinocchio gives every term analytically except d gamma / dq, a third derivative of the loop
-closure, which is taken by five-point central differences of gamma (step 1e-3: truncation
-~h^4, rounding ~eps |gamma| / h, about 1e-12 relative). Point loops and mimic couplings; weld
-loops, the orthonormal basis and the penalty and canonical formulations at a moving state
-are not supported yet. tests/test_moving_loops.py checks the model against central
-differences of Pinocchio's own constrained forward dynamics on the mechanism.
+Where :func:`pinlin.loop_kernels.plan` applies (no steady rotation, point closures moved by
+1-DoF joints) every term is analytic, d gamma / dq (a third derivative of the loop closure)
+included, and the model is computed by :mod:`pinlin.formulations.moving_batch` (the code a
+trajectory runs on its stacks, here with one point). Elsewhere Pinocchio gives every term
+analytically except d gamma / dq, taken by five-point central differences of gamma (step
+1e-3: truncation ~h^4, rounding ~eps |gamma| / h, about 1e-12 relative). Point loops and
+mimic couplings; weld loops, the orthonormal basis and the penalty and canonical
+formulations at a moving state are not supported yet. tests/test_moving_loops.py checks
+the model against central differences of Pinocchio's own constrained forward dynamics on
+the mechanism.
 """
 
 from __future__ import annotations
@@ -38,12 +42,14 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from .. import loop_kernels as lk
 from ..assembly import Partition, assemble, partition, projection
 from ..derivatives import second_order_terms
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import ModelError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint, residual_tolerance
+from . import moving_batch
 from .constrained import constrained_effects
 from .independent import output_matrices
 
@@ -86,11 +92,19 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
     [N*m or N]. What :func:`moving_point` does once the loops are closed; trajectories call
     it with the partition of their first point."""
     cons = system.constraints
-    G = jac[part.rows]
-    v, correction = project_velocity(G, v0)
-    a0, lam_k = _constrained_dynamics(system, q0, v, u0, G, part)
-    lam = np.zeros(cons.size)
-    lam[part.rows] = lam_k
+    plan = lk.plan(system)
+    if plan is not None:  # the stacked kernels with N = 1 (as a trajectory's points)
+        st = moving_batch.states(system, plan, q0[None], v0[None], u0[None], part.rows)
+        G = st.jac[0][part.rows]
+        v, correction, a0, lam = st.v[0], st.correction[0], st.a[0], st.lam[0]
+        M0 = st.M[0]
+    else:
+        G = jac[part.rows]
+        v, correction = project_velocity(G, v0)
+        a0, lam_k = _constrained_dynamics(system, q0, v, u0, G, part)
+        lam = np.zeros(cons.size)
+        lam[part.rows] = lam_k
+        M0 = system.mass_matrix(q0)
     tau = _applied(system, q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
     tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
     zn = ", ".join(system.coordinate_names[i] for i in part.independent)
@@ -100,7 +114,7 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
              "the model is affine, x' = f0 + A x + B u"]
     if part.dropped:
         notes.append(f"redundant constraint rows dropped: {', '.join(part.dropped)}")
-    op = OperatingPoint(q=q0, v=v, u=u0, a=a0, residual=system.mass_matrix(q0) @ a0,
+    op = OperatingPoint(q=q0, v=v, u=u0, a=a0, residual=M0 @ a0,
                         equilibrium=False, tolerance=tol, lam=lam, notes=tuple(notes),
                         lam_names=cons.row_names)
     return op, ConstrainedPoint(part, G)
@@ -144,6 +158,44 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
     part, G = cp.partition, cp.jacobian
     rows, z = part.rows, part.independent
     nv, nz = system.nv, len(z)
+    plan = lk.plan(system)
+    if plan is not None:  # the stacked kernels with N = 1 (as a trajectory's points)
+        st = moving_batch.given(system, plan, op.q, op.v, op.a, op.lam)
+        mats = moving_batch.models(system, plan, st, rows, z, part.dependent)
+        A, B, f0, R, W = mats.A[0], mats.B[0], mats.f0[0], mats.R[0], mats.W[0]
+        S = system.input_matrix
+    else:
+        A, B, f0, R, W, S = _per_point(system, op, part, G)
+    coords = [system.coordinate_names[i] for i in z]
+    states = tuple([f"q:{c}" for c in coords] + [f"v:{c}" for c in coords])
+    Cout, _, out_names, y0 = output_matrices(system, op)
+    if system.outputs is None:
+        Cout, out_names, y0 = np.eye(2 * nz), states, np.zeros(2 * nz)
+    else:  # y = h(q, v): dy = C_q dq + C_v dv with dq = R dz, dv = R dz' + W dz
+        Cq, Cv = Cout[:, :nv], Cout[:, nv:]
+        Cout = np.hstack([Cq @ R + Cv @ W, Cv @ R])
+    info = {
+        "formulation": "independent", "derivatives": "analytic", "basis": "partitioned",
+        "effects": constrained_effects(system),
+        "velocity_terms": True, "base": "free" if system.base_joint else "fixed",
+        "notes": list(op.notes), "independent": coords,
+        "constraint_rows": [cons.row_names[i] for i in rows],
+        "dropped_rows": list(part.dropped), "R": R.tolist(),
+        "condition": {"constraint_jacobian": part.condition},
+    }
+    return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
+                       state_names=states, input_names=system.input_names,
+                       output_names=out_names, operating_point=op.with_outputs(y0),
+                       name=system.scene.name, info=info, f0=f0)
+
+
+def _per_point(system, op: OperatingPoint, part: Partition, G: np.ndarray):
+    """(A, B, f0, R, W, S) of :func:`linearize_moving` by Pinocchio point by point (systems
+    the stacked kernels do not cover: a steady rotation, closures moved by multi-DoF joints);
+    d gamma / dq by five-point differences."""
+    cons = system.constraints
+    rows, z = part.rows, part.independent
+    nv, nz = system.nv, len(z)
     terms = second_order_terms(system, op, "analytic")
     C = terms.C if terms.C is not None else np.zeros((nv, nv))
     S = system.input_matrix
@@ -167,27 +219,7 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
     B = np.zeros((2 * nz, S.shape[1]))
     B[nz:] = F_u[z]
     f0 = np.concatenate([op.v[z], op.a[z]])
-    coords = [system.coordinate_names[i] for i in z]
-    states = tuple([f"q:{c}" for c in coords] + [f"v:{c}" for c in coords])
-    Cout, _, out_names, y0 = output_matrices(system, op)
-    if system.outputs is None:
-        Cout, out_names, y0 = np.eye(2 * nz), states, np.zeros(2 * nz)
-    else:  # y = h(q, v): dy = C_q dq + C_v dv with dq = R dz, dv = R dz' + W dz
-        Cq, Cv = Cout[:, :nv], Cout[:, nv:]
-        Cout = np.hstack([Cq @ R + Cv @ W, Cv @ R])
-    info = {
-        "formulation": "independent", "derivatives": "analytic", "basis": "partitioned",
-        "effects": constrained_effects(system),
-        "velocity_terms": True, "base": "free" if system.base_joint else "fixed",
-        "notes": list(op.notes), "independent": coords,
-        "constraint_rows": [cons.row_names[i] for i in rows],
-        "dropped_rows": list(part.dropped), "R": R.tolist(),
-        "condition": {"constraint_jacobian": part.condition},
-    }
-    return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
-                       state_names=states, input_names=system.input_names,
-                       output_names=out_names, operating_point=op.with_outputs(y0),
-                       name=system.scene.name, info=info, f0=f0)
+    return A, B, f0, R, W, S
 
 
 def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
@@ -246,9 +278,15 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
 
 
 def _gamma_derivative(system, op: OperatingPoint) -> np.ndarray:
-    """d gamma / dq at (q0, v0) (m x nv), v held: five-point central differences on the
+    """d gamma / dq at (q0, v0) (m x nv), v held: analytic where
+    :func:`pinlin.loop_kernels.plan` applies, else five-point central differences on the
     manifold (step :data:`GAMMA_STEP`)."""
     cons = system.constraints
+    plan = lk.plan(system)
+    if plan is not None:
+        J = np.zeros((1, len(plan.frames), 6, system.nv))
+        lk.frame_jacobians(system.model, system.data, op.q, plan.frames, J[0])
+        return lk.bias_terms(plan, J, op.v[None])[2][0]
     h = GAMMA_STEP
     out = np.zeros((cons.size, system.nv))
     e = np.zeros(system.nv)
