@@ -335,8 +335,9 @@ class ModalAnalysis:
                 ev, wn, f, zeta = "0 (rigid)", "0", "0", "-"
             else:
                 im = abs(lam.imag)
-                # A real part within rounding of 0 (an undamped mode) prints as 0, zeta too.
-                noise = abs(lam.real) <= self.rounding[i]
+                # A real part within rounding of 0 (an undamped mode) prints as 0, zeta too;
+                # not where rounding may move the whole eigenvalue (a defective one): as computed.
+                noise = abs(lam.real) <= self.rounding[i] < abs(lam)
                 re = "0" if noise else f"{lam.real:+.6g}"
                 ev = f"{re} +- {im:.6g}j" if im > self.rigid_tol else re
                 wn, f = f"{self.wn[i]:.6g}", f"{self.wn[i] / (2 * np.pi):.6g}"
@@ -593,7 +594,7 @@ def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = Non
     magnitudes = np.abs(lam)                # in dgeev's order
     # Sort by |lam|, then Re, then +Im first: LAPACK returns conjugate pairs of a real matrix
     # as exact conjugates, so each pair ties on (|lam|, Re) and lands adjacent.
-    order = np.lexsort((-wi, wr, magnitudes))
+    order = _pairs_adjacent(np.lexsort((-wi, wr, magnitudes)), wi)
     tol = _rigid_tol(float(magnitudes[order[-1]]), rigid_tol)
     lam = lam[order]
     rigid = magnitudes[order] <= tol        # a leading run: sorted by |lam|
@@ -612,6 +613,23 @@ def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = Non
     if n_rigid < len(order):                # no warning about rigid modes
         _warn_if_at_risk(result, vr, wi, magnitudes, n_rigid, a2)
     return result
+
+
+def _pairs_adjacent(order: np.ndarray, wi: np.ndarray) -> np.ndarray:
+    """``order`` with each conjugate pair adjacent, +Im first. dgeev stores a pair in columns
+    p (Im > 0) and p + 1; sorting by (|lam|, Re, -Im) keeps them adjacent unless another pair
+    is equal to the bit (a repeated eigenvalue, e.g. symmetric constraint modes), which puts
+    both +Im first: then each +Im is followed by its own partner."""
+    pos = np.flatnonzero(wi[order] > 0)
+    if np.array_equal(order[np.minimum(pos + 1, len(order) - 1)], order[pos] + 1):
+        return order
+    out: list[int] = []
+    for p in order.tolist():
+        if wi[p] > 0:
+            out += [p, p + 1]
+        elif wi[p] == 0:
+            out.append(p)
+    return np.array(out, dtype=order.dtype)
 
 
 def _empty(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:

@@ -264,3 +264,41 @@ def test_unstable_symmetric_pencil_keeps_vectors_matched():
     np.testing.assert_allclose(model.A @ R, R * modes.eigenvalues, atol=1e-12)
     np.testing.assert_allclose(np.abs(modes.eigenvalues[0::2]), np.sqrt([0.25, 1, 4, 9]),
                                rtol=1e-14)
+
+
+def test_repeated_complex_pairs_stay_paired():
+    """Two identical damped oscillators (wn = 3 rad/s, zeta = 0.2), uncoupled: dgeev returns
+    the pair -0.6 +- 2.939j twice, equal to the bit, which a plain sort by (|lam|, Re, -Im)
+    orders +, +, -, -. Each +Im must be followed by its own conjugate: two modes, two table
+    rows, A R = R Lambda, and the table prints the real part -0.6 (not the rounding rule's
+    0: rounding cannot move this well-conditioned pair by 0.6)."""
+    wn, zeta = 3.0, 0.2
+    K, C = wn**2 * np.eye(2), 2 * zeta * wn * np.eye(2)
+    names = ["a", "b"]
+    model = pinlin.LinearModel(
+        A=np.block([[np.zeros((2, 2)), np.eye(2)], [-K, -C]]), B=np.zeros((4, 1)),
+        C=np.eye(4), D=np.zeros((4, 1)),
+        state_names=[f"q:{s}" for s in names] + [f"v:{s}" for s in names],
+        input_names=["u"], output_names=[f"y{i}" for i in range(4)], name="twins")
+    modes = pinlin.modal(model, method="general")
+    lam = modes.eigenvalues
+    assert np.sum(lam == lam[0]) == 2          # the repeated pair, equal to the bit
+    for k in range(0, 4, 2):
+        assert lam[k].imag > 0 and lam[k + 1] == np.conj(lam[k])
+    assert len(modes.modes()) == 2
+    R = modes.right_vectors
+    np.testing.assert_allclose(model.A @ R, R * lam, rtol=0, atol=1e-12)
+    rows = [ln for ln in str(modes).splitlines()[3:] if ln.strip()]
+    assert len(rows) == 2 and all("-0.6 +- 2.93939j" in ln for ln in rows)
+
+
+def test_unresolved_eigenvalue_prints_as_computed():
+    """The canonical standing box's constraint modes are a defective double root near -10
+    (mu = 1: critically damped) with condition ~1e11: rounding may move the whole eigenvalue,
+    so the table must not pretend its real part is 0 (it printed '0 +- 0.0045j', zeta 0,
+    for an eigenvalue of -10)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        modes = pinlin.modal(pinlin.linearize("standing_box", formulation="canonical"))
+    rows = [ln for ln in str(modes).splitlines() if "constraint" in ln]
+    assert rows and all(ln.split()[1] == "-10" for ln in rows), rows
