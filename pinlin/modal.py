@@ -21,13 +21,13 @@ What costs what: ``modal`` runs one LAPACK eigensolver and O(n) to O(n^2) NumPy 
 shapes (scaled), names, wn and zeta, the eigenvector matrices, the condition numbers, the
 modal form (:attr:`ModalAnalysis.decoupling`) and the table are built on first access. On the
 general path the accuracy warning needs condition numbers, which ``modal`` takes from the
-inverse of the right vectors (:func:`_pair_conditions`: one LU inverse of the real
-eigenvector matrix, ~1/20 of ``dgeev`` at n = 38; a bound from it clears the usual model at
+inverse of the right vectors (:func:`pinlin.eigensolvers.pair_conditions`: one LU inverse of
+the real eigenvector matrix, ~1/20 of ``dgeev`` at n = 38; a bound from it clears the usual model at
 once). The warning, when due, names the eigenvalue and its condition number from that inverse
 (they agree with LAPACK's left vectors to ~cond(V) eps relative: 1e-11 on well conditioned
 robots, a few 1e-4 at kappa ~ 1e14, where no digit beyond the first means anything). LAPACK's
 left vectors (a second ``dgeev``) are computed only where V is exactly singular or the risk
-lies within :func:`_risk_margin` of the threshold, or when
+lies within :func:`pinlin.eigensolvers.risk_margin` of the threshold, or when
 :attr:`ModalAnalysis.left_vectors` or :attr:`ModalAnalysis.condition` is read.
 
 Conventions: wn = |lam| [rad/s], zeta = -Re(lam) / |lam|. Eigenvalues with |lam| <= rigid_tol are
@@ -47,14 +47,12 @@ from __future__ import annotations
 import functools
 import math
 import numbers
-import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.linalg import LinAlgError, lapack
 
-from .conditioning import AccuracyWarning
+from . import eigensolvers as es
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 
@@ -149,7 +147,7 @@ class ModalAnalysis:
             return None
         if not self.model.M.shape[0]:
             return np.zeros((0, 0))
-        _, phi = _solve_pencil(self.model, vectors=True)
+        _, phi = es.solve_pencil(self.model, vectors=True)
         return phi if self._pencil_order is None else phi[:, self._pencil_order]
 
     @functools.cached_property
@@ -202,16 +200,16 @@ class ModalAnalysis:
         """Right eigenvectors of A as columns (Jordan chains for rigid modes of the symmetric
         path); built on first access."""
         if self.method == "symmetric":
-            return _symmetric_right(self.eigenvalues, self._phi, self.rigid)
-        return _complex_vectors(self._vectors, self._imag)[:, self._order]
+            return es.symmetric_right(self.eigenvalues, self._phi, self.rigid)
+        return es.complex_vectors(self._vectors, self._imag)[:, self._order]
 
     @functools.cached_property
     def left_vectors(self) -> np.ndarray:
         """Left eigenvectors as columns, scaled so that l_i^H r_i = 1; built on first access
         (general path: LAPACK ``dgeev`` once more, with left vectors)."""
         if self.method == "symmetric":
-            return _symmetric_left(self.eigenvalues, self.model.M @ self._phi, self.rigid)
-        return _general_left(self.model.A, self._vectors, self._imag, self._order,
+            return es.symmetric_left(self.eigenvalues, self.model.M @ self._phi, self.rigid)
+        return es.general_left(self.model.A, self._vectors, self._imag, self._order,
                              self.right_vectors)
 
     @functools.cached_property
@@ -467,17 +465,6 @@ def _frequencies(lam: np.ndarray, rigid: np.ndarray) -> tuple[np.ndarray, np.nda
 
 # --------------------------------------------------------------------------------------------
 # Symmetric path
-def _solve_pencil(model: LinearModel, vectors: bool) -> tuple[np.ndarray, np.ndarray | None]:
-    """w2 (ascending) and, with ``vectors``, phi (phi^T M phi = I) of the definite pencil
-    (K_s, M), K_s = (K + K^T) / 2: LAPACK ``dsygvd``, the call and workspace of
-    ``scipy.linalg.eigh(K_s, M, driver="gvd", eigvals_only=not vectors)``, without its
-    checks (the entries are checked by ``modal``)."""
-    K = model.K
-    Ks = 0.5 * (K + K.T)    # symmetric bit for bit, so Ks.T is itself in Fortran order
-    w2, phi, info = lapack.dsygvd(Ks.T, model.M, jobz="V" if vectors else "N", overwrite_a=1)
-    if info:
-        raise LinAlgError(_sygvd_failure(info, K.shape[0]))
-    return w2, (phi if vectors else None)
 
 
 def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
@@ -485,7 +472,7 @@ def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     if n == 0:
         return ModalAnalysis._made(np.zeros(0, dtype=complex), np.zeros(0, dtype=bool),
                                    _rigid_tol(0.0, rigid_tol), "symmetric", model, slice(0, 0))
-    w2, _ = _solve_pencil(model, vectors=False)
+    w2, _ = es.solve_pencil(model, vectors=False)
     mag = np.sqrt(np.abs(w2))
     tol = _rigid_tol(float(max(mag[0], mag[-1])), rigid_tol)  # w2 ascending: |w2| peaks at an end
     order = None
@@ -504,83 +491,18 @@ def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
                                slice(0, n), pencil_order=order)
 
 
-def _sygvd_failure(info: int, n: int) -> str:
-    """scipy.linalg.eigh's message for a failed dsygvd."""
-    if info > n:
-        return (f"The leading minor of order {info - n} of B is not positive definite. The "
-                "factorization of B could not be completed and no eigenvalues or eigenvectors "
-                "were computed.")
-    if info < 0:
-        return f"Illegal value in argument {-info} of internal dsygvd"
-    return ("The algorithm failed to compute an eigenvalue while working on the submatrix "
-            f"lying in rows and columns {info}/{n + 1} through mod({info},{n + 1}).")
 
 
-def _symmetric_right(lam: np.ndarray, phi: np.ndarray, rigid: np.ndarray) -> np.ndarray:
-    """r = [phi; lam phi]; a rigid pair is the Jordan chain [phi; 0], [0; phi]."""
-    n = phi.shape[0]
-    rigid_mode = rigid[0::2]
-    root = lam[0::2]
-    R = np.zeros((2 * n, 2 * n), dtype=complex)
-    R[:n, 0::2] = phi
-    R[n:, 0::2] = root * phi
-    R[:n, 1::2] = np.where(rigid_mode, 0.0, 1.0) * phi
-    R[n:, 1::2] = np.where(rigid_mode, 1.0, -root) * phi
-    return R
 
 
-def _symmetric_left(lam: np.ndarray, mphi: np.ndarray, rigid: np.ndarray) -> np.ndarray:
-    """l = [M phi / 2; M phi / (2 lam)*]; a rigid pair [M phi; 0], [0; M phi]."""
-    n = mphi.shape[0]
-    L = np.zeros((2 * n, 2 * n), dtype=complex)
-    rigid_mode = rigid[0::2]
-    moving = ~rigid_mode
-    cols = np.flatnonzero(np.repeat(moving, 2))      # both columns of each moving pair
-    m = np.repeat(mphi[:, moving], 2, axis=1)
-    L[:n, cols] = 0.5 * m
-    L[n:, cols] = np.conj(1.0 / (2.0 * lam[cols])) * m
-    still = np.flatnonzero(rigid_mode)
-    L[:n, 2 * still] = mphi[:, still]
-    L[n:, 2 * still + 1] = mphi[:, still]
-    return L
 
 
 # --------------------------------------------------------------------------------------------
 # General path
-@functools.lru_cache(maxsize=256)
-def _geev_lwork(n: int, left: bool) -> int:
-    """dgeev's optimal workspace, as scipy.linalg.eig asks for it (a smaller one changes the
-    blocking and so the last digits)."""
-    work, info = lapack.dgeev_lwork(n, compute_vl=int(left))
-    if info:
-        raise LinAlgError(f"dgeev workspace query failed (LAPACK info={info})")
-    return int(work)
 
 
-def _geev(A: np.ndarray, left: bool) -> tuple[np.ndarray, ...]:
-    """wr, wi, vl, vr of LAPACK dgeev (vl empty unless ``left``), as scipy.linalg.eig calls it."""
-    wr, wi, vl, vr, info = lapack.dgeev(A, compute_vl=int(left),
-                                        lwork=_geev_lwork(A.shape[0], left))
-    if info < 0:
-        raise ValueError(f"illegal value in argument {-info} of internal eig algorithm (geev)")
-    if info > 0:
-        raise LinAlgError(f"eig algorithm (geev) did not converge (only eigenvalues with order "
-                          f">= {info} have converged)")
-    return wr, wi, vl, vr
 
 
-def _complex_vectors(v: np.ndarray, wi: np.ndarray) -> np.ndarray:
-    """dgeev's eigenvectors as columns (complex when a pair is): a conjugate pair's columns
-    u, v become u + iv, u - iv (as scipy.linalg.eig returns them, real when all are)."""
-    if not wi.any():
-        return v
-    out = v.astype(complex)
-    first = wi > 0
-    first[:-1] |= wi[1:] < 0
-    idx = np.flatnonzero(first)
-    out.imag[:, idx] = v[:, idx + 1]
-    out[:, idx + 1] = out[:, idx].conj()
-    return out
 
 
 def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = None
@@ -589,7 +511,7 @@ def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = Non
     A = model.A
     if A.shape[0] == 0:
         return _empty(model, rigid_tol)
-    wr, wi, _, vr = _geev(A, left=False)
+    wr, wi, _, vr = es.geev(A, left=False)
     lam = wr + 1j * wi
     magnitudes = np.abs(lam)                # in dgeev's order
     # Sort by |lam|, then Re, then +Im first: LAPACK returns conjugate pairs of a real matrix
@@ -611,7 +533,7 @@ def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = Non
     result = ModalAnalysis._made(lam, rigid, tol, "general", model, rows, vectors=vr, imag=wi,
                                  order=order)
     if n_rigid < len(order):                # no warning about rigid modes
-        _warn_if_at_risk(result, vr, wi, magnitudes, n_rigid, a2)
+        es.warn_if_at_risk(result, vr, wi, magnitudes, n_rigid, a2)
     return result
 
 
@@ -640,127 +562,15 @@ def _empty(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
                          _vectors=empty, _imag=np.zeros(0), _order=np.zeros(0, dtype=int))
 
 
-def _general_left(A: np.ndarray, vr: np.ndarray, wi: np.ndarray, order: np.ndarray,
-                  right: np.ndarray) -> np.ndarray:
-    """Left eigenvectors matching ``right`` (sorted by ``order``), scaled to l^H r = 1.
-
-    dgeev with left vectors repeats the reduction of the right-only call, so its right vectors
-    (and eigenvalues) come out the same bit for bit; should they not, the rows of R^-1 are
-    used (left vectors biorthogonal to R by construction)."""
-    if A.shape[0] == 0:
-        return np.zeros((0, 0))
-    _, wi2, vl, vr2 = _geev(A, left=True)
-    if not (np.array_equal(vr2, vr) and np.array_equal(wi2, wi)):
-        return np.linalg.solve(right, np.eye(len(order))).conj().T
-    vl = _complex_vectors(vl, wi)[:, order]
-    dots = np.einsum("ij,ij->j", vl.conj(), right)
-    ok = np.abs(dots) > np.finfo(float).eps
-    return np.where(ok, vl / np.where(ok, dots, 1.0).conj(), vl)
 
 
-#: modal warns when rounding in A alone may move an eigenvalue by more than this (relative).
-EIGENVALUE_RISK = 1e-6
-#: Factor below EIGENVALUE_RISK under which the cheap bound (:func:`_warn_if_at_risk`)
-#: settles that no warning is due (it is within a factor 2 N of kappa eps max|A| / |lam|).
-RISK_MARGIN = 4.0
-#: Least factor by which the risk from V^-1 must clear the threshold to be trusted over
-#: LAPACK's (:func:`_risk_margin`); within it, LAPACK's left vectors decide.
-RISK_MARGIN_MIN = 1.01
 
 
-def _inverse(vr: np.ndarray) -> np.ndarray | None:
-    """V^-1 by LU (LAPACK ``dgetrf``, ``dgetri``), or None when V is exactly singular."""
-    lu, piv, info = lapack.dgetrf(vr)
-    if info:
-        return None
-    inv, info = lapack.dgetri(lu, piv, overwrite_lu=1)
-    return None if info else inv
 
 
-def _pair_conditions(k2: np.ndarray, wi: np.ndarray) -> np.ndarray:
-    """Eigenvalue condition numbers kappa (dgeev's order) from the squared row norms ``k2`` of
-    V^-1, V being dgeev's real right vectors (``wi``: imaginary parts of the eigenvalues).
-
-    For a diagonalizable A = R Lam R^-1, the left vector scaled to l_i^H r_i = 1 is row i of
-    R^-1 (conjugated), so kappa_i = |l_i| |r_i| / |l_i^H r_i| = |e_i^T R^-1| |r_i|, and dgeev
-    scales every r_i to |r_i| = 1. It stores R as the real V (a pair u +- iv as columns u, v,
-    |u|^2 + |v|^2 = 1): R = V P with P = [[1, 1], [i, -i]] on each pair, so the pair's rows
-    of R^-1 = P^-1 V^-1 are (w_u -+ i w_v) / 2, with w the rows of V^-1:
-    kappa^2 = (|w_u|^2 + |w_v|^2) / 4 for both, and a real eigenvalue has kappa = |w|. These
-    agree with the kappa of LAPACK's left vectors to ~cond(V) eps relative (1e-11 on pinlin's
-    robots; 2e-4 where kappa ~ 1e14, whose digits beyond the first are rounding either way).
-    The rows of a (nearly) defective block, such as a floating base's rigid modes (2x2
-    Jordan blocks), overflow to inf; the others stay accurate."""
-    kappa = np.sqrt(k2)
-    if np.count_nonzero(wi):
-        u = np.flatnonzero(wi > 0)          # a pair's columns are u (wi > 0), then v
-        pair = np.sqrt(0.25 * (k2[u] + k2[u + 1]))
-        kappa[u] = pair
-        kappa[u + 1] = pair
-    return kappa
 
 
-def _warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
-                     magnitudes: np.ndarray, n_rigid: int, a2: float | None = None) -> None:
-    """AccuracyWarning when rounding in A (eps max|A|) can move a non-rigid eigenvalue by
-    more than EIGENVALUE_RISK of itself: kappa eps max|A| / |lam| > 1e-6 (``vr``, ``wi``,
-    ``magnitudes`` |lam|: in dgeev's order; the first ``n_rigid`` sorted eigenvalues are rigid;
-    ``a2``: |A|_F^2 if known).
-
-    One LU inverse of the right vectors V settles it (:func:`_pair_conditions`): first a bound
-    (max over the columns of |row of V^-1| / |lam|, >= kappa / |lam|, times eps |A|_F >=
-    eps max|A|), which clears the usual model; else kappa itself. Only where V is singular or
-    kappa lies within :func:`_risk_margin` of the threshold are LAPACK's left vectors computed
-    (:attr:`ModalAnalysis.condition`, a second ``dgeev``), so that a borderline case is settled
-    exactly as the condition numbers a user reads would settle it."""
-    A, order = result.model.A, result._order
-    inv = _inverse(vr)
-    if inv is not None:
-        # Squared row norms (einsum: no overflow warning where V^-1 is huge, inf then).
-        k2 = np.einsum("ij,ij->i", inv, inv)
-        moving = order[n_rigid:]                        # sorted, non-rigid, dgeev's indices
-        k2_moving, lam_moving = (k2[moving], magnitudes[moving]) if n_rigid else (k2, magnitudes)
-        worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
-        frobenius = math.sqrt(a2 if a2 is not None and a2 < math.inf else np.vdot(A, A))
-        if worst_column * _EPS * frobenius <= EIGENVALUE_RISK / RISK_MARGIN:   # False for NaN
-            return
-        scale = _EPS * float(np.abs(A).max())
-        kappa = _pair_conditions(k2, wi)[moving]
-        risk = kappa * scale / magnitudes[moving]
-        worst = int(np.argmax(risk))        # a NaN wins argmax, and fails both tests below
-        ratio = float(risk[worst]) / EIGENVALUE_RISK
-        margin = _risk_margin(k2_moving, k2.size)
-        if ratio * margin < 1.0:
-            return
-        if margin < ratio < math.inf:
-            _warn(result, n_rigid + worst, float(kappa[worst]), float(risk[worst]))
-            return
-    scale = _EPS * float(np.abs(A).max())
-    ok = ~result.rigid
-    kappa = result.condition[ok]
-    risk = kappa * scale / result.wn[ok]
-    worst = int(np.argmax(risk))
-    if risk[worst] > EIGENVALUE_RISK:
-        _warn(result, int(np.flatnonzero(ok)[worst]), float(kappa[worst]), float(risk[worst]))
 
 
-def _risk_margin(k2: np.ndarray, n: int) -> float:
-    """How far (a factor > 1) the risk from V^-1 must lie from the threshold to be trusted
-    over LAPACK's: 1 + 100 n c eps with c = sqrt(n sum k2) (``k2``: squared norms of the rows
-    of V^-1 that belong to non-rigid eigenvalues; n: size of A), the relative error of either
-    kappa bounded generously (those rows are accurate to ~c eps relative, c being cond_F(V)
-    restricted to them; dgeev's columns have unit norm). 1.01 for pinlin's robots at rest;
-    ~150 where kappa ~ 1e14 (the floating bases at a moving state: those warn far above it).
-    NaN or inf rows give inf: LAPACK decides."""
-    cond = math.sqrt(n * float(k2.sum()))
-    return max(RISK_MARGIN_MIN, 1.0 + 100.0 * n * cond * _EPS)
 
 
-def _warn(result: ModalAnalysis, index: int, kappa: float, risk: float) -> None:
-    """The AccuracyWarning for eigenvalue ``index`` (sorted) of condition number ``kappa``
-    and relative risk ``risk``."""
-    lam = result.eigenvalues[index]
-    warnings.warn(AccuracyWarning(
-        f"model '{result.model.name}': eigenvalue {lam:.6g} has condition number "
-        f"{kappa:.2e}; rounding in A alone may move it by {risk:.1e} (relative)", kappa),
-        stacklevel=5)  # _warn, _warn_if_at_risk, _general, modal, the caller

@@ -176,7 +176,8 @@ def test_warning_from_right_vectors_matches_lapack_condition_numbers(delta, marg
     a wide margin (1e3) the cases near the threshold are settled by LAPACK's left vectors
     instead, with the same outcome."""
     if margin is not None:
-        monkeypatch.setattr(importlib.import_module("pinlin.modal"), "RISK_MARGIN_MIN", margin)
+        monkeypatch.setattr(importlib.import_module("pinlin.eigensolvers"), "RISK_MARGIN_MIN",
+                            margin)
     model = _near_defective(delta, rigid)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -192,13 +193,13 @@ def test_warning_from_right_vectors_matches_lapack_condition_numbers(delta, marg
 
 def test_condition_numbers_from_the_inverse_of_the_right_vectors():
     """kappa from the rows of V^-1 (pairs combined) equals LAPACK's left-vector kappa."""
-    modal_module = importlib.import_module("pinlin.modal")
+    modal_module = importlib.import_module("pinlin.eigensolvers")
     rng = np.random.default_rng(3)
     for n in (2, 5, 12, 30):
         A = rng.normal(size=(n, n)) + np.diag(rng.uniform(0.5, 3.0, n))
-        wr, wi, _, vr = modal_module._geev(A, left=False)
+        wr, wi, _, vr = modal_module.geev(A, left=False)
         inv = np.linalg.inv(vr)
-        kappa = modal_module._pair_conditions(np.einsum("ij,ij->i", inv, inv), wi)
+        kappa = modal_module.pair_conditions(np.einsum("ij,ij->i", inv, inv), wi)
         lam, L, R = sla.eig(A, left=True, right=True)
         assert np.allclose(lam, wr + 1j * wi, rtol=0, atol=0)      # same dgeev, same order
         ref = np.linalg.norm(L, axis=0) * np.linalg.norm(R, axis=0) / np.abs(
