@@ -273,7 +273,10 @@ def test_canonical_model_is_never_silently_wrong(name):
     exactly when its gap exceeds 1e-6, and then each physical eigenvalue lies within the
     reported gap of the penalty model's, which lies at its own O(1/alpha) distance from the
     independent model's: |can - ind| <= gap |pen| + |pen - ind| (the same eigensolver as the
-    check, scipy's, so the bound is exact)."""
+    check, scipy's, so the bound is exact). No growth is invented beyond rounding: a decaying
+    penalty mode's canonical real part stays below eps |A|_F, the backward error of any
+    eigenvalue of A in float64 (K_p ~ alpha makes it ~1e-6 1/s at alpha = 1e10), where the
+    sign of a real part is not determined."""
     import warnings
 
     import scipy.linalg as sla
@@ -296,11 +299,12 @@ def test_canonical_model_is_never_silently_wrong(name):
         assert warned == (gap > 1e-6)
         pen = sla.eigvals(pinlin.linearize(path, formulation="penalty", alpha=alpha).A)
         lam = sla.eigvals(model.A)
+        floor = np.finfo(float).eps * np.linalg.norm(model.A)
         for r in exact:
             p = pen[np.argmin(np.abs(pen - r))]
             nearest = lam[np.argmin(np.abs(lam - r))]
             assert abs(nearest - r) <= gap * abs(p) + abs(p - r) + 1e-12 * abs(r)
-            assert nearest.real <= 0.0 or p.real >= 0.0   # no invented growth
+            assert nearest.real <= floor or p.real >= 0.0   # no invented growth
 
 
 @pytest.mark.parametrize("name", ["four_bar", "five_bar", "delta"])

@@ -441,6 +441,7 @@ def canonical_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.nda
 #: CANONICAL_WARN. Measured (four-bar, slider-crank, delta): 2e-8 at alpha = 1e7, 5e-7-5e-6
 #: at 1e9, 3e-3-5e-3 and false instabilities at 1e12.
 CANONICAL_WARN, CANONICAL_REFUSE = 1e-6, 1e-4
+_EPS = float(np.finfo(float).eps)
 
 
 def _check_canonical_spectrum(A: np.ndarray, A_pen: np.ndarray, G: np.ndarray, alpha: float,
@@ -466,7 +467,10 @@ def _check_canonical_spectrum(A: np.ndarray, A_pen: np.ndarray, G: np.ndarray, a
     rows, cols = linear_sum_assignment(cost)
     gap = float(cost[rows, cols][physical[cols]].max(initial=0.0))
     # A decaying (or undamped, Re = -O(1/alpha)) penalty mode that grows in the canonical one.
-    grows = bool(np.any((lam_c[rows].real > 0.0) & (lam_p[cols].real < 0.0)))
+    # Growth below eps |A|_F is rounding: every eigenvalue of A computed in float64 carries a
+    # backward error of that size (K_p ~ alpha makes it large), so it decides nothing.
+    floor = _EPS * float(np.linalg.norm(A))
+    grows = bool(np.any((lam_c[rows].real > floor) & (lam_p[cols].real < 0.0)))
     if gap > CANONICAL_REFUSE or grows:
         what = "shows a growing mode the penalty model does not have" if grows else \
             f"has eigenvalues {gap:.1e} (relative) away from the penalty model's"
