@@ -31,12 +31,12 @@ REPORT = ROOT / "validation" / "reports" / "mutation.md"
 #: name: (file, snippet, replacement, what the bug is)
 MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     "alpha_doubled": (
-        "pinlin/formulations/constrained.py", "    return out[0], out[1], out[2]",
-        "    return 2 * out[0], out[1], out[2]",
+        "pinlin/formulations/constrained.py", "    return p.alpha, p.mu, p.omega",
+        "    return 2 * p.alpha, p.mu, p.omega",
         "penalty factor alpha doubled everywhere (model and info alike)"),
     "mu_halved": (
-        "pinlin/formulations/constrained.py", "    return out[0], out[1], out[2]",
-        "    return out[0], 0.5 * out[1], out[2]",
+        "pinlin/formulations/constrained.py", "    return p.alpha, p.mu, p.omega",
+        "    return p.alpha, 0.5 * p.mu, p.omega",
         "penalty damping ratio mu halved everywhere"),
     "mechanism_outputs_independent_only": (
         "pinlin/formulations/constrained.py",
