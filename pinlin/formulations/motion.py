@@ -311,8 +311,10 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
                          "the orthonormal basis are not supported there yet")
     if system.base_joint is not None:
         raise ModelError(f"scene '{system.scene.name}': a floating-base robot with loops or "
-                         "contacts is linearized at rest (standing); at a moving state it is "
-                         "not supported yet")
+                         "contacts is linearized standing, with its statics solved "
+                         "(operating_point.solve = \"inputs\", or \"forces\" for given inputs); "
+                         "a given state (solve = \"none\", or q, v, u passed to linearize), "
+                         "moving or not, is not supported for it yet")
     if system.constraints.has_welds:
         raise ModelError(f"scene '{system.scene.name}': weld loops and contacts at a moving "
                          "state are not supported yet (point loops and contacts and mimic "
