@@ -63,10 +63,15 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    arrays = {k: v for k, v in arrays.items() if k != 'G'}\n"
         "    names = {k: list(v) for k, v in names.items()}",
         "saved model files silently drop the constraint Jacobian G"),
-    "hessian_unsymmetrized": (
-        "pinlin/constraints.py", "        sym = 0.5 * (out + out.T)\n",
-        "        sym = out.T.copy()\n",
-        "loop geometric stiffness without its symmetric part (right only for planar loops)"),
+    "weld_hessian_without_rotation_terms": (
+        "pinlin/constraints.py",
+        "                    out[j] -= lr @ (0.5 * np.cross(d[:, j], d.T).T "
+        "+ np.cross(d[:, j], w2.T).T)\n", "",
+        "a weld's geometric stiffness without its -1/2 d x d - d x w2 rotation terms"),
+    "point_hessian_wrong_ancestor": (
+        "pinlin/constraints.py", "        return X * upper + (X * strict).T",
+        "        return X.T * upper + (X.T * strict).T",
+        "the batched point-loop stiffness takes the descendant's axis for the pair's ancestor"),
     "hessian_base_symmetrized": (
         "pinlin/constraints.py", "            sym[block, block] = out.T[block, block]",
         "            pass",
