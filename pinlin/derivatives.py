@@ -126,7 +126,7 @@ class SecondOrderTerms(NamedTuple):
 
 def velocity_terms(system: System, op: OperatingPoint) -> bool:
     """Whether dH/dv can be non-zero: damping present or a non-zero velocity."""
-    return system.has_damping or system.rotation is not None or bool(op.v.any())
+    return system.has_damping or system.rotation is not None or bool(np.count_nonzero(op.v))
 
 
 def second_order_terms(system: System, op: OperatingPoint, backend: str = "analytic",

@@ -107,7 +107,7 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
         rounding = max(propagated_noise(Minv, sigma_K), propagated_noise(Minv, sigma_C))
         info.update(error_estimate(A, A_alt, rounding))
     f0 = None
-    if op.v.any() or op.a.any():  # off equilibrium: x' = f0 + A x + B u
+    if np.count_nonzero(op.v) or np.count_nonzero(op.a):  # off equilibrium: x' = f0 + A x + B u
         f0 = read_only(np.concatenate([op.v, op.a]))
     return LinearModel.assembled(
         f0=f0, dt=0.0,
