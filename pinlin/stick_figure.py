@@ -128,6 +128,17 @@ class StickFigure:
         return np.vstack([self.points, tips.reshape(-1, 3)])
 
 
+def _frame_index(model: pin.Model, name: str) -> int:
+    """Index of frame ``name`` in ``model`` (len(model.frames) if none), as
+    :meth:`pinlin.system.System.frame_id` resolves it: a link and a joint may share a name
+    (anymal_c, z1, so100), and the link's frame wins."""
+    for kind in (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT,
+                 pin.FrameType.JOINT):
+        if model.existFrame(name, kind):
+            return model.getFrameId(name, kind)
+    return len(model.frames)
+
+
 class Skeleton:
     """The points and links of a system's stick figure (module docstring); build once, then
     draw at any configuration with :meth:`figure`. Holds one ``pin.Data``: one skeleton per
@@ -164,7 +175,7 @@ class Skeleton:
         for loop in system.scene.loops:
             pair = []
             for fname in (loop.frame1, loop.frame2):
-                fid = model.getFrameId(fname)
+                fid = _frame_index(model, fname)
                 if fid >= len(model.frames):
                     raise ModelError(f"scene '{system.scene.name}': loop frame '{fname}' is not "
                                      "a frame of the model")
@@ -175,7 +186,7 @@ class Skeleton:
         # Contacts: the frame, and its anchor in the world (drawn as the world origin is).
         self._anchors: list[pin.SE3] = []
         for contact in system.constraints.contacts:
-            fid = model.getFrameId(contact.frame)
+            fid = _frame_index(model, contact.frame)
             if fid not in frames:
                 frames.append(fid)
             self._anchors.append(contact.placement)
@@ -192,7 +203,7 @@ class Skeleton:
             links.append((index_of_joint[parent], index_of_frame[fid]))
         anchored = []
         for k, contact in enumerate(system.constraints.contacts):
-            anchored.append([index_of_frame[model.getFrameId(contact.frame)], len(entries)])
+            anchored.append([index_of_frame[_frame_index(model, contact.frame)], len(entries)])
             entries.append(("anchor", k))
             names.append(f"anchor:{contact.name}")
         self.names = tuple(names)

@@ -340,3 +340,17 @@ def test_validation_report_without_a_scene_says_why(tmp_path):
     assert not (tmp_path / "renamed_pendulum_modes.png").exists()
     write_report(res, tmp_path, scene=pinlin.Scene.resolve("pendulum"))
     assert (tmp_path / "renamed_pendulum_modes.png").exists()
+
+
+def test_contact_on_a_name_a_link_and_a_joint_share():
+    """so100's 'gripper' names both a link and a joint (Pinocchio then refuses a lookup by
+    name alone): the figure takes the link's frame, as the scene's contact does."""
+    scene = pinlin.Scene.from_dict({"name": "so100_tip", "robot": "so100",
+                                    "effects": {"gravity": [0.0, 0.0, 0.0]},
+                                    "contacts": [{"name": "tip", "frame": "gripper"}]})
+    pm = scene.system.model
+    fig = Skeleton(scene).figure(scene.system.q_ref)
+    link = pm.getFrameId("gripper", pin.FrameType.BODY)
+    np.testing.assert_allclose(fig.point("anchor:tip"),
+                               _placements(pm, scene.system.q_ref).oMf[link].translation,
+                               rtol=0, atol=1e-12)
