@@ -45,6 +45,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from . import constraint_derivatives
 from .exceptions import ModelError, SceneError, UrdfError
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -373,20 +374,7 @@ class ConstraintSet:
         Raises:
             ModelError: a weld loop or contact (not supported at a moving state yet).
         """
-        out = np.zeros(self.size)
-        if not self._closures:
-            return out
-        self._refuse_welds()
-        sysm = self.system
-        kin, kd = sysm.kin_model, sysm.kin_data
-        pin.forwardKinematics(kin, kd, sysm.kin_q(q), sysm.kin_v(v, spin=False),
-                              np.zeros(kin.nv))
-        pin.updateFramePlacements(kin, kd)
-        for _, f1, f2, row, _ in self._closures:
-            out[row:row + 3] = pin.getFrameClassicalAcceleration(kin, kd, f1, LWA).linear
-            if f2 is not None:
-                out[row:row + 3] -= pin.getFrameClassicalAcceleration(kin, kd, f2, LWA).linear
-        return out
+        return constraint_derivatives.bias_acceleration(self, q, v)
 
     def jacobian_variation(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Phi_qq[w, .] (m x nv): the time variation of Phi_q along a velocity w [1/s], from
@@ -395,19 +383,7 @@ class ConstraintSet:
         Raises:
             ModelError: a weld loop or contact (not supported at a moving state yet).
         """
-        sysm = self.system
-        out = np.zeros((self.size, sysm.nv))
-        if not self._closures:
-            return out
-        self._refuse_welds()
-        kin, kd = sysm.kin_model, sysm.kin_data
-        pin.computeJointJacobiansTimeVariation(kin, kd, sysm.kin_q(q), sysm.kin_v(w, spin=False))
-        cols = sysm.kin_columns
-        for _, f1, f2, row, _ in self._closures:
-            out[row:row + 3] = pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:3, cols]
-            if f2 is not None:
-                out[row:row + 3] -= pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:3, cols]
-        return out
+        return constraint_derivatives.jacobian_variation(self, q, w)
 
     def _refuse_welds(self) -> None:
         if self.has_welds:
@@ -426,108 +402,29 @@ class ConstraintSet:
         closures' support gives d(Phi_q)/d(dq_j) (at v = e_j, d/dt(J) is dJ/dq_j), the weld
         rotation rows adding -1/2 d_j x d_k - d_j x w2_k.
         """
-        nv = self.system.nv
-        if not self._closures or not np.any(lam[:self._loop_rows()]):
-            return np.zeros((nv, nv))
-        if self._batched_hessian:
-            return self._point_hessian(q, lam)
-        return self.hessian_by_time_variation(q, lam)
+        return constraint_derivatives.hessian(self, q, lam)
 
     def _point_hessian(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        """:meth:`hessian` of point loops and contacts on 1-DoF joints, batched: one
-        ``computeJointJacobians`` and two frame Jacobians per closure.
-
-        On a chain of 1-DoF joints with constant motion axes (revolute, prismatic, continuous,
-        helical) the world twist S_k of joint k moves only with its ancestors, dS_k/dq_j =
-        S_j x S_k, and a point p of the frame moves as dp/dq_j = Jp_j. Together (Jacobi
-        identity) d(Jp_k)/dq_j = w_a x Jp_b with a the ancestor of the pair (j, k) and b the
-        other, w the angular and Jp the point's linear Jacobian columns (LOCAL_WORLD_ALIGNED);
-        both are zero off the frame's support. Velocity indices grow from root to leaf, so in
-        X[j, k] = lam . (w_j x Jp_k) = -w_j . ([lam]x Jp_k) the pair's ancestor is the
-        smaller index: the Hessian is triu(X) + triu(X, 1)^T, summed over every frame (signed
-        +1 for frame1, -1 for frame2) in one product of stacked 3-row blocks.
-        """
-        sysm = self.system
-        kin, kd = sysm.kin_model, sysm.kin_data
-        pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
-        frames, lam_rows, skew_at, skew_sign = self._hessian_plan
-        J = np.concatenate([pin.getFrameJacobian(kin, kd, fid, LWA) for fid in frames])
-        if sysm.rotation is not None:
-            J = J[:, sysm.kin_columns]
-        n = J.shape[0] // 2  # 3 rows per frame
-        # Block-diagonal -s [lam]x per frame: Y = Jp x (s lam) for each frame's 3 rows.
-        skew = np.zeros(n * n)
-        skew[skew_at] = skew_sign * lam[lam_rows]
-        point = J.reshape(-1, 2, 3, J.shape[1])  # (frame, linear | angular, xyz, nv)
-        X = point[:, 1].reshape(n, -1).T @ (skew.reshape(n, n) @ point[:, 0].reshape(n, -1))
-        upper, strict = self._triangles
-        return X * upper + (X * strict).T
+        """:func:`pinlin.constraint_derivatives._point_hessian` (batched :meth:`hessian` of point
+        loops and contacts on 1-DoF joints)."""
+        return constraint_derivatives._point_hessian(self, q, lam)
 
     @functools.cached_property
     def _hessian_plan(self) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray]:
-        """For :meth:`_point_hessian`: the closure frames, and where the signed entries of lam
-        go in the block-diagonal matrix of -s [lam]x (flat index into 3F x 3F, the lam row
-        each reads, and the sign s times the cross-product sign)."""
-        frames, rows, at, sign = [], [], [], []
-        # -[l]x = [[0, l_z, -l_y], [-l_z, 0, l_x], [l_y, -l_x, 0]]
-        pattern = ((0, 1, 2, 1.0), (0, 2, 1, -1.0), (1, 0, 2, -1.0), (1, 2, 0, 1.0),
-                   (2, 0, 1, 1.0), (2, 1, 0, -1.0))
-        n = 3 * len(self._signed_frames)
-        for i, (fid, s, row) in enumerate(self._signed_frames):
-            frames.append(fid)
-            for r, c, axis, sg in pattern:
-                at.append((3 * i + r) * n + 3 * i + c)
-                rows.append(row + axis)
-                sign.append(s * sg)
-        return frames, np.array(rows), np.array(at), np.array(sign)
+        """For :meth:`_point_hessian`, built once: see
+        :func:`pinlin.constraint_derivatives._hessian_plan`."""
+        return constraint_derivatives._hessian_plan(self)
 
     @functools.cached_property
     def _triangles(self) -> tuple[np.ndarray, np.ndarray]:
         """Masks of the upper triangle of an nv x nv matrix, with and without the diagonal
         (np.triu builds its mask on every call)."""
-        nv = self.system.nv
-        upper = np.triu(np.ones((nv, nv)))
-        return upper, upper - np.eye(nv)
+        return constraint_derivatives._triangles(self)
 
     def hessian_by_time_variation(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """:meth:`hessian` by one ``computeJointJacobiansTimeVariation`` per support coordinate
         (any joint and closure type; the reference the batched path is tested against)."""
-        sysm = self.system
-        nv = sysm.nv
-        out = np.zeros((nv, nv))  # out[j, k] = lam . d(Phi_q e_k)/d(dq_j)
-        if not self._closures or not np.any(lam[:self._loop_rows()]):
-            return out
-        kin, kd = sysm.kin_model, sysm.kin_data
-        qk = sysm.kin_q(q)
-        cols = sysm.kin_columns
-        pin.computeJointJacobians(kin, kd, qk)
-        pin.updateFramePlacements(kin, kd)
-        zero = np.zeros((3, nv))
-        angular = {}  # weld rows: (w1 - w2, w2), world angular-velocity Jacobians (3 x nv)
-        for kind, f1, f2, row, _ in self._closures:
-            if kind == "weld":
-                w1 = pin.getFrameJacobian(kin, kd, f1, LWA)[3:, cols]
-                w2 = zero if f2 is None else pin.getFrameJacobian(kin, kd, f2, LWA)[3:, cols]
-                angular[row] = (w1 - w2, w2)
-        e = np.zeros(nv)
-        for j in self._support:
-            e[j] = 1.0
-            pin.computeJointJacobiansTimeVariation(kin, kd, qk, sysm.kin_v(e, spin=False))
-            for kind, f1, f2, row, _ in self._closures:
-                dJ = pin.getFrameJacobianTimeVariation(kin, kd, f1, LWA)[:, cols]
-                if f2 is not None:
-                    dJ = dJ - pin.getFrameJacobianTimeVariation(kin, kd, f2, LWA)[:, cols]
-                out[j] += lam[row:row + 3] @ dJ[:3]
-                if kind == "weld":
-                    lr = lam[row + 3:row + 6]
-                    d, w2 = angular[row]
-                    out[j] += lr @ dJ[3:]
-                    out[j] -= lr @ (0.5 * np.cross(d[:, j], d.T).T + np.cross(d[:, j], w2.T).T)
-            e[j] = 0.0
-        sym = 0.5 * (out + out.T)
-        for block in self._lie_blocks:
-            sym[block, block] = out.T[block, block]
-        return sym
+        return constraint_derivatives.hessian_by_time_variation(self, q, lam)
 
     # ----------------------------------------------------------------------------------------
     def _loop_rows(self) -> int:

@@ -35,11 +35,7 @@ rigid-body (zero) modes: wn = 0 and zeta = NaN by definition (never computed as 
 "rigid" in the table. The default rigid_tol is 1e-6 * max(1, largest |lam|) [rad/s], well above
 the O(sqrt(eps) |lam|max) spread that rounding gives a zero eigenvalue of a Jordan block.
 
-The printed table shows a real part (and so zeta) as 0 where it is below the eigenvalue's
-rounding level (:attr:`ModalAnalysis.rounding`, kappa eps |A|_F: how far rounding A's entries
-moves it to first order), so an undamped mode prints zeta 0, not -5e-18; the arrays
-``eigenvalues`` and ``zeta`` keep the computed values, and which modes are stable does not
-change (that uses rigid_tol, many orders above).
+The printed table and how it labels modes: :mod:`pinlin.modal_table`.
 """
 
 from __future__ import annotations
@@ -53,6 +49,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import eigensolvers as es
+from . import modal_table
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 
@@ -269,81 +266,25 @@ class ModalAnalysis:
     def dominant(self, index: int, threshold: float = 0.5, limit: int = 3) -> list[str]:
         """Names of the coordinates whose |shape| entry is at least ``threshold`` in mode
         ``index``, largest first."""
-        mag = np.abs(self.shapes[:, index])
-        order = np.argsort(-mag, kind="stable")
-        return [self.coordinate_names[k] for k in order[:limit] if mag[k] >= threshold]
+        return modal_table.dominant(self, index, threshold, limit)
 
     def modes(self) -> list[int]:
         """Indices of one eigenvalue per mode: conjugate pairs and rigid pairs counted once."""
-        keep: list[int] = []
-        skip: set[int] = set()
-        lam = self.eigenvalues
-        for i in range(len(lam)):
-            if i in skip:
-                continue
-            keep.append(i)
-            if i + 1 < len(lam) and (
-                # A rigid DoF of a mechanical model is a 2x2 Jordan block: two zero eigenvalues.
-                (self.rigid[i] and self.rigid[i + 1] and self.model.has_second_order)
-                or (abs(lam[i].imag) > self.rigid_tol
-                    and abs(lam[i + 1] - lam[i].conjugate()) <= 1e-9 * max(1.0, abs(lam[i])))
-            ):
-                skip.add(i + 1)
-        return keep
+        return modal_table.modes(self)
 
     @functools.cached_property
     def constraint(self) -> np.ndarray:
         """Mask of constraint modes of a dependent-coordinate model (penalty, canonical): the
         2m eigenvalues whose position vectors lie most in the range of Phi_q^T (m constraint
         rows), measured by |G v_q| / (|G| |v_q|); physical modes have |G v_q| = O(1/alpha)."""
-        G = self.model.G
-        out = np.zeros(len(self.eigenvalues), dtype=bool)
-        if G is None or G.shape[0] == 0:
-            return out
-        rows = [k for k, s in enumerate(self.model.state_names) if s.startswith("q:")]
-        vq = self.right_vectors[rows]
-        ratio = np.linalg.norm(G @ vq, axis=0) / (
-            np.linalg.norm(G, 2) * np.maximum(np.linalg.norm(vq, axis=0), np.finfo(float).tiny))
-        out[np.argsort(-ratio, kind="stable")[:2 * G.shape[0]]] = True
-        return out
+        return modal_table.constraint(self)
 
     def kind(self, index: int) -> str:
-        lam = self.eigenvalues[index]
-        if self.constraint[index]:
-            return "constraint"
-        if self.rigid[index]:
-            return "rigid"
-        if lam.real > self.rigid_tol:
-            return "unstable" if abs(lam.imag) <= self.rigid_tol else "unstable osc."
-        if abs(lam.imag) > self.rigid_tol:
-            return "oscillatory" if lam.real < -self.rigid_tol else "undamped"
-        return "real"
+        return modal_table.kind(self, index)
 
     def table(self) -> str:
         """A readable table with one row per mode."""
-        head = (f"{'#':>3}  {'eigenvalue [1/s]':>28}  {'wn [rad/s]':>11}  {'f [Hz]':>10}  "
-                f"{'zeta':>8}  {'kind':<13}  dominant coordinates")
-        count = len(self.eigenvalues)
-        lines = [f"Modes of '{self.model.name}' ({self.method} eigensolver, "
-                 f"{count} eigenvalue{'' if count == 1 else 's'}, rigid below "
-                 f"{self.rigid_tol:.1e} rad/s)", head, "-" * len(head)]
-        for n, i in enumerate(self.modes(), start=1):
-            lam = self.eigenvalues[i]
-            if self.rigid[i]:
-                ev, wn, f, zeta = "0 (rigid)", "0", "0", "-"
-            else:
-                im = abs(lam.imag)
-                # A real part within rounding of 0 (an undamped mode) prints as 0, zeta too;
-                # not where rounding may move the whole eigenvalue (a defective one): as computed.
-                noise = abs(lam.real) <= self.rounding[i] < abs(lam)
-                re = "0" if noise else f"{lam.real:+.6g}"
-                ev = f"{re} +- {im:.6g}j" if im > self.rigid_tol else re
-                wn, f = f"{self.wn[i]:.6g}", f"{self.wn[i] / (2 * np.pi):.6g}"
-                zeta = "0" if noise else f"{self.zeta[i]:.4g}"
-            dom = ", ".join(self.dominant(i))
-            lines.append(f"{n:>3}  {ev:>28}  {wn:>11}  {f:>10}  {zeta:>8}  {self.kind(i):<13}  "
-                         f"{dom}")
-        return "\n".join(lines)
+        return modal_table.table(self)
 
     def __str__(self) -> str:
         return self.table()
@@ -491,18 +432,8 @@ def _symmetric(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
                                slice(0, n), pencil_order=order)
 
 
-
-
-
-
-
-
 # --------------------------------------------------------------------------------------------
 # General path
-
-
-
-
 
 
 def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = None
@@ -560,17 +491,3 @@ def _empty(model: LinearModel, rigid_tol: float | None) -> ModalAnalysis:
     return ModalAnalysis(np.zeros(0, dtype=complex), np.zeros(0, dtype=bool),
                          _rigid_tol(0.0, rigid_tol), "general", model, slice(None),
                          _vectors=empty, _imag=np.zeros(0), _order=np.zeros(0, dtype=int))
-
-
-
-
-
-
-
-
-
-
-
-
-
-

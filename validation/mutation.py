@@ -45,7 +45,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "Cout[:, nv:][:, cp.partition.independent]])",
         "a mechanism's output C ignores the dependent coordinates' motion"),
     "canonical_output_mp": (
-        "pinlin/formulations/constrained.py",
+        "pinlin/formulations/canonical.py",
         "Cout = np.hstack([Cfull[:, n:] @ Mp_inv, Cfull[:, :n]])",
         "Cout = np.hstack([Cfull[:, n:] @ Mp, Cfull[:, :n]])",
         "canonical output C reads v = M_p p instead of M_p^-1 p"),
@@ -53,7 +53,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/formulations/constrained.py", "    B[n:] = Q @ XB",
         "    B[n:] = -(Q @ XB)", "penalty model's B with its sign flipped"),
     "canonical_b_sign": (
-        "pinlin/formulations/constrained.py", "    B = np.vstack([Bu, np.zeros_like(Bu)])",
+        "pinlin/formulations/canonical.py", "    B = np.vstack([Bu, np.zeros_like(Bu)])",
         "    B = np.vstack([-Bu, np.zeros_like(Bu)])", "canonical model's B with its sign flipped"),
     "mjcf_drops_armature": (
         "pinlin/mjcf.py", "        joint.armature = float(system.model.armature[j.idx_v])",
@@ -64,17 +64,17 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    names = {k: list(v) for k, v in names.items()}",
         "saved model files silently drop the constraint Jacobian G"),
     "weld_hessian_without_rotation_terms": (
-        "pinlin/constraints.py",
-        "                    out[j] -= lr @ (0.5 * np.cross(d[:, j], d.T).T "
+        "pinlin/constraint_derivatives.py",
+        "                out[j] -= lr @ (0.5 * np.cross(d[:, j], d.T).T "
         "+ np.cross(d[:, j], w2.T).T)\n", "",
         "a weld's geometric stiffness without its -1/2 d x d - d x w2 rotation terms"),
     "point_hessian_wrong_ancestor": (
-        "pinlin/constraints.py", "        return X * upper + (X * strict).T",
-        "        return X.T * upper + (X.T * strict).T",
+        "pinlin/constraint_derivatives.py", "    return X * upper + (X * strict).T",
+        "    return X.T * upper + (X.T * strict).T",
         "the batched point-loop stiffness takes the descendant's axis for the pair's ancestor"),
     "hessian_base_symmetrized": (
-        "pinlin/constraints.py", "            sym[block, block] = out.T[block, block]",
-        "            pass",
+        "pinlin/constraint_derivatives.py", "        sym[block, block] = out.T[block, block]",
+        "        pass",
         "a floating base's constraint stiffness symmetrized (its exact part is not symmetric)"),
     "estimate_without_rounding": (
         "pinlin/derivatives.py",
@@ -85,7 +85,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/derivatives.py", "        if not STEP_MIN <= h <= STEP_MAX:",
         "        if False:", "finite-difference steps of 2 pi or 1e-300 accepted"),
     "no_canonical_check": (
-        "pinlin/formulations/constrained.py",
+        "pinlin/formulations/canonical.py",
         "    gap = (_check_canonical_spectrum(A, A_pen, G, alpha, system.scene.name) if G.size",
         "    gap = (0.0 if G.size",
         "canonical model returned at any alpha, its spectrum unchecked"),

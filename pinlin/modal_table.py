@@ -1,0 +1,108 @@
+"""How a :class:`~pinlin.modal.ModalAnalysis` reads as a table: its modes (one eigenvalue per
+conjugate or rigid pair), the constraint modes of a dependent-coordinate model, the kind of
+each mode (constraint, rigid, oscillatory, ...), the coordinates that dominate its shape, and
+the printed table with one row per mode; the analysis's methods of the same names call these
+functions.
+
+The printed table shows a real part (and so zeta) as 0 where it is below the eigenvalue's
+rounding level (:attr:`ModalAnalysis.rounding`, kappa eps |A|_F: how far rounding A's entries
+moves it to first order), so an undamped mode prints zeta 0, not -5e-18; the arrays
+``eigenvalues`` and ``zeta`` keep the computed values, and which modes are stable does not
+change (that uses rigid_tol, many orders above).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .modal import ModalAnalysis
+
+
+def modes(analysis: ModalAnalysis) -> list[int]:
+    """:meth:`ModalAnalysis.modes` of ``analysis`` (documented there, in
+    :mod:`pinlin.modal`)."""
+    keep: list[int] = []
+    skip: set[int] = set()
+    lam = analysis.eigenvalues
+    for i in range(len(lam)):
+        if i in skip:
+            continue
+        keep.append(i)
+        if i + 1 < len(lam) and (
+            # A rigid DoF of a mechanical model is a 2x2 Jordan block: two zero eigenvalues.
+            (analysis.rigid[i] and analysis.rigid[i + 1] and analysis.model.has_second_order)
+            or (abs(lam[i].imag) > analysis.rigid_tol
+                and abs(lam[i + 1] - lam[i].conjugate()) <= 1e-9 * max(1.0, abs(lam[i])))
+        ):
+            skip.add(i + 1)
+    return keep
+
+
+def constraint(analysis: ModalAnalysis) -> np.ndarray:
+    """:attr:`ModalAnalysis.constraint` of ``analysis`` (documented there, in
+    :mod:`pinlin.modal`)."""
+    G = analysis.model.G
+    out = np.zeros(len(analysis.eigenvalues), dtype=bool)
+    if G is None or G.shape[0] == 0:
+        return out
+    rows = [k for k, s in enumerate(analysis.model.state_names) if s.startswith("q:")]
+    vq = analysis.right_vectors[rows]
+    ratio = np.linalg.norm(G @ vq, axis=0) / (
+        np.linalg.norm(G, 2) * np.maximum(np.linalg.norm(vq, axis=0), np.finfo(float).tiny))
+    out[np.argsort(-ratio, kind="stable")[:2 * G.shape[0]]] = True
+    return out
+
+
+def kind(analysis: ModalAnalysis, index: int) -> str:
+    """:meth:`ModalAnalysis.kind` of ``analysis`` (documented there, in
+    :mod:`pinlin.modal`)."""
+    lam = analysis.eigenvalues[index]
+    if analysis.constraint[index]:
+        return "constraint"
+    if analysis.rigid[index]:
+        return "rigid"
+    if lam.real > analysis.rigid_tol:
+        return "unstable" if abs(lam.imag) <= analysis.rigid_tol else "unstable osc."
+    if abs(lam.imag) > analysis.rigid_tol:
+        return "oscillatory" if lam.real < -analysis.rigid_tol else "undamped"
+    return "real"
+
+
+def dominant(analysis: ModalAnalysis, index: int, threshold: float = 0.5, limit: int = 3
+             ) -> list[str]:
+    """:meth:`ModalAnalysis.dominant` of ``analysis`` (documented there, in
+    :mod:`pinlin.modal`)."""
+    mag = np.abs(analysis.shapes[:, index])
+    order = np.argsort(-mag, kind="stable")
+    return [analysis.coordinate_names[k] for k in order[:limit] if mag[k] >= threshold]
+
+
+def table(analysis: ModalAnalysis) -> str:
+    """:meth:`ModalAnalysis.table` of ``analysis`` (documented there, in
+    :mod:`pinlin.modal`)."""
+    head = (f"{'#':>3}  {'eigenvalue [1/s]':>28}  {'wn [rad/s]':>11}  {'f [Hz]':>10}  "
+            f"{'zeta':>8}  {'kind':<13}  dominant coordinates")
+    count = len(analysis.eigenvalues)
+    lines = [f"Modes of '{analysis.model.name}' ({analysis.method} eigensolver, "
+             f"{count} eigenvalue{'' if count == 1 else 's'}, rigid below "
+             f"{analysis.rigid_tol:.1e} rad/s)", head, "-" * len(head)]
+    for n, i in enumerate(analysis.modes(), start=1):
+        lam = analysis.eigenvalues[i]
+        if analysis.rigid[i]:
+            ev, wn, f, zeta = "0 (rigid)", "0", "0", "-"
+        else:
+            im = abs(lam.imag)
+            # A real part within rounding of 0 (an undamped mode) prints as 0, zeta too;
+            # not where rounding may move the whole eigenvalue (a defective one): as computed.
+            noise = abs(lam.real) <= analysis.rounding[i] < abs(lam)
+            re = "0" if noise else f"{lam.real:+.6g}"
+            ev = f"{re} +- {im:.6g}j" if im > analysis.rigid_tol else re
+            wn, f = f"{analysis.wn[i]:.6g}", f"{analysis.wn[i] / (2 * np.pi):.6g}"
+            zeta = "0" if noise else f"{analysis.zeta[i]:.4g}"
+        dom = ", ".join(analysis.dominant(i))
+        lines.append(f"{n:>3}  {ev:>28}  {wn:>11}  {f:>10}  {zeta:>8}  {analysis.kind(i):<13}  "
+                     f"{dom}")
+    return "\n".join(lines)
