@@ -65,9 +65,38 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
 }
 
 
+#: Data formats whose signature any file of that kind has (every JSON object starts with
+#: "{", every .npz is a zip): what pinlin's own files hold besides (a model's or trajectory's
+#: names, a history's columns).
+_NPZ_MEMBERS = ({"state_names.npy"}, {"t.npy", "names.npy", "values.npy"})
+_MAT_MARKER = b"state_names"
+_JSON_START = b'{\n "state_names"'
+
+
+def _pinlin_content(target: Path, suffix: str) -> bool:
+    """Whether ``target`` (a file of the kind ``suffix`` names) holds what pinlin writes there:
+    for .npz, .mat and .json its own arrays or keys; other kinds are told by their head."""
+    import zipfile
+
+    try:
+        if suffix == ".npz":
+            with zipfile.ZipFile(target) as archive:
+                names = set(archive.namelist())
+            return any(member <= names for member in _NPZ_MEMBERS)
+        if suffix == ".mat":
+            return _MAT_MARKER in target.read_bytes()
+        if suffix == ".json":
+            with target.open("rb") as fh:
+                return fh.read(len(_JSON_START)) == _JSON_START
+    except (OSError, zipfile.BadZipFile):
+        return False
+    return True
+
+
 def check_replaceable(path: Path, target: Path) -> None:
     """Refuse to replace an existing non-empty ``target`` (``path``, links followed) that does
-    not begin as the files pinlin writes with its suffix begin (:data:`SIGNATURES`)."""
+    not begin as the files pinlin writes with its suffix begin (:data:`SIGNATURES`), or, for
+    the data formats, does not hold pinlin's own names (:func:`_pinlin_content`)."""
     heads = SIGNATURES.get(path.suffix.lower())      # the kind the caller writes
     if heads is None or not target.is_file():
         return
@@ -76,7 +105,8 @@ def check_replaceable(path: Path, target: Path) -> None:
             start = fh.read(max(len(h) for h in heads))
     except OSError as exc:
         raise ModelFileError(path, f"cannot read it: {exc.strerror or exc}") from None
-    if start and not any(start.startswith(h) for h in heads):
+    if start and not (any(start.startswith(h) for h in heads)
+                      and _pinlin_content(target, path.suffix.lower())):
         where = f" (a link to '{target}')" if target != path else ""
         raise ModelFileError(path, f"exists{where} and is not a {path.suffix} file of the "
                                    "kind pinlin writes; pinlin does not replace it: move it "

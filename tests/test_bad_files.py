@@ -473,12 +473,13 @@ def test_exception_while_serializing_leaves_no_trace(tmp_path):
 
 def test_unserializable_info_is_a_model_file_error_and_writes_nothing(tmp_path):
     out = tmp_path / "m.json"
-    out.write_text('{"old": true}')  # an earlier model file: replaceable, so the info fails
+    out.write_text('{\n "state_names": []}')  # an earlier model file: replaceable
     model = dataclasses.replace(tiny(), info={"callback": object()})
     for suffix in FORMATS:
         with pytest.raises(ModelFileError, match="cannot save: the model's info"):
             model.save(out.with_suffix(suffix))
-    assert out.read_text() == '{"old": true}' and sorted(os.listdir(tmp_path)) == ["m.json"]
+    assert out.read_text() == '{\n "state_names": []}'
+    assert sorted(os.listdir(tmp_path)) == ["m.json"]
 
 
 def test_atomic_write_keeps_mode_and_follows_a_symlink(tmp_path):
@@ -677,3 +678,23 @@ def test_outputs_never_replace_a_file_of_another_kind(args, how, capfd, tmp_path
         code, _, err = cli(capfd, *argv)
         assert code == 0, err
     no_temporaries(tmp_path)
+
+
+@pytest.mark.parametrize("suffix, content", [
+    (".json", b'{"my": "settings"}\n'),
+    (".npz", None),          # a user's own archive: a zip, but none of pinlin's arrays
+    (".mat", b"MATLAB 5.0 MAT-file, a user's own data" + bytes(100)),
+], ids=["json", "npz", "mat"])
+def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content, capfd,
+                                                                tmp_path):
+    """Every JSON object starts with '{' and every .npz is a zip: for the data formats pinlin
+    also looks for its own names (a model's state_names, a history's columns)."""
+    target = tmp_path / f"mine{suffix}"
+    if content is None:
+        np.savez(target, x=np.ones(3))
+    else:
+        target.write_bytes(content)
+    before = snapshot(tmp_path)
+    code, _, err = cli(capfd, "linearize", "double_pendulum", "--out", target)
+    assert_refused(code, err, target.name, "pinlin does not replace it")
+    assert snapshot(tmp_path) == before
