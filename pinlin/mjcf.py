@@ -288,23 +288,38 @@ def _add_contacts(spec: mujoco.MjSpec, system, bodies: set[str], solref: np.ndar
 def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray | None = None,
            key: str = "operating_point") -> str:
     """The MJCF text of ``ms``; with ``q`` (and ``v``), a keyframe ``key`` holding pinlin's
-    (q, v) in MuJoCo's coordinates at full precision (MuJoCo's writer keeps 6 digits, which
-    opens a held foot by ~1e-6 m): ``mj_resetDataKeyframe`` starts MuJoCo there. Generalized
-    forces have no keyframe field: inputs that hold the posture still need applying.
+    (q, v) in MuJoCo's coordinates: ``mj_resetDataKeyframe`` starts MuJoCo there (``ms``'s
+    own spec is left as it was). MuJoCo's writer keeps 6 digits, which opens a held foot by
+    ~1e-6 m: the bodies' placements and inertias, pinlin's sites and the key are rewritten at
+    full precision. Generalized forces have no keyframe field: inputs that hold the posture
+    still need applying.
 
     Raises:
         MujocoError: MuJoCo cannot write the model.
     """
+    spec = ms.spec
     if q is not None:
         v = np.zeros(system.nv) if v is None else v
         set_state(ms, system, q, v, np.zeros(system.nv))
         qpos, qvel = ms.data.qpos.copy(), ms.data.qvel.copy()
-        ms.spec.add_key(name=key, qpos=qpos, qvel=qvel)
+        spec = ms.spec.copy()    # the key goes into the file, not into ms's own spec
+        spec.add_key(name=key, qpos=qpos, qvel=qvel)
     try:
-        xml = ms.spec.to_xml()
+        xml = spec.to_xml()
     except Exception as exc:  # noqa: BLE001  MuJoCo raises ValueError or RuntimeError
         raise MujocoError(f"MuJoCo cannot write MJCF for '{system.scene.name}': {exc}") from None
     m = ms.model
+    for i in range(1, m.nbody):  # placements and inertias as compiled, at full precision
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, i)
+        head = f'<body name="{name}"'
+        xml = _exact_attributes(xml, head, {"pos": m.body_pos[i], "quat": m.body_quat[i]})
+        start = xml.find(head)
+        inertial = xml.find("<inertial", start)
+        if start >= 0 and 0 <= inertial < min(_next(xml, "<body", start + 1),
+                                              _next(xml, "</body>", start)):
+            xml = _exact_attributes(xml, "<inertial", {
+                "pos": m.body_ipos[i], "quat": m.body_iquat[i], "mass": m.body_mass[i:i + 1],
+                "diaginertia": m.body_inertia[i]}, inertial)
     for i in range(m.nsite):     # the sites pinlin placed: loop and contact anchors
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i)
         xml = _exact_attributes(xml, f'<site name="{name}"',
@@ -314,13 +329,19 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
     return xml
 
 
-def _exact_attributes(xml: str, head: str, values: dict[str, np.ndarray]) -> str:
-    """``xml`` with the listed attributes of the element starting with ``head`` written at
-    full precision (repr of each float64); attributes the element does not carry stay
-    absent (MuJoCo left them at their defaults)."""
+def _next(xml: str, text: str, start: int) -> int:
+    """Index of ``text`` in ``xml`` from ``start``, or len(xml)."""
+    found = xml.find(text, start)
+    return len(xml) if found < 0 else found
+
+
+def _exact_attributes(xml: str, head: str, values: dict[str, np.ndarray], at: int = 0) -> str:
+    """``xml`` with the listed attributes of the first element starting with ``head`` (from
+    index ``at``) written at full precision (repr of each float64); attributes the element
+    does not carry stay absent (MuJoCo left them at their defaults)."""
     import re
 
-    start = xml.find(head)
+    start = xml.find(head, at)
     if start < 0:
         return xml
     end = xml.index(">", start)

@@ -207,11 +207,14 @@ def test_bench_one_system_into_an_existing_report_keeps_the_others(tmp_path):
     assert f"Rows of {', '.join(kept)} are kept from an earlier run" in text
 
 
-@pytest.mark.parametrize("name", ["solo12_standing", "talos_standing", "four_bar"])
+@pytest.mark.parametrize("name", ["solo12_standing", "talos_standing", "g1_standing",
+                                  "four_bar"])
 def test_exported_mjcf_starts_at_the_operating_point(name, tmp_path, capsys):
-    """export-mjcf writes a keyframe 'operating_point' with pinlin's q0 and the sites at full
-    precision: reset to it, MuJoCo's loops and held feet are closed to rounding of the URDF's
-    O(1) lengths (1e-12; MuJoCo's own 6-digit writing left ~5e-7 m) and its qpos is pinlin's."""
+    """export-mjcf writes a keyframe 'operating_point' with pinlin's q0, and the bodies, their
+    inertias and the sites at full precision: reset to it, MuJoCo's loops and held feet are
+    closed to rounding of the URDF's O(1) lengths (1e-12; MuJoCo's own 6-digit writing left
+    ~5e-7 m, 5e-9 m with only the sites rewritten), its qpos is pinlin's and the file's
+    bodies are those pinlin validates (the same compiled numbers)."""
     out = tmp_path / f"{name}.xml"
     assert main(["export-mjcf", name, "-o", str(out)]) == 0
     assert "keyframe 'operating_point'" in capsys.readouterr().out
@@ -226,3 +229,10 @@ def test_exported_mjcf_starts_at_the_operating_point(name, tmp_path, capsys):
     mjcf.set_state(ms, scene.system, pinlin.operating_point(scene).q,
                    np.zeros(scene.system.nv), np.zeros(scene.system.nv))
     np.testing.assert_array_equal(d.qpos, ms.data.qpos)
+    for key in ("body_pos", "body_quat", "body_ipos", "body_iquat", "body_mass",
+                "body_inertia"):
+        np.testing.assert_array_equal(getattr(m, key), getattr(ms.model, key))
+    q0 = pinlin.operating_point(scene).q
+    for _ in range(2):       # the key goes into the text only: twice works, the spec keeps none
+        assert '<key name="operating_point"' in mjcf.to_xml(ms, scene.system, q0)
+    assert "<key" not in ms.spec.to_xml()
