@@ -380,9 +380,10 @@ def _frame_on_body(system, frame: str, bodies: set[str], fld: str
         fid = kin.getFrameId(frame, pin.FrameType.BODY)
         if fid < len(kin.frames):
             return frame, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
-    fid = kin.getFrameId(frame)
-    if fid >= len(kin.frames):
-        raise MujocoError(f"{fld}: '{frame}' is not a frame of the model")
+    try:
+        fid = system.frame_id(frame, fld)   # a link and a joint may share a name
+    except PinlinError:
+        raise MujocoError(f"{fld}: '{frame}' is not a frame of the model") from None
     target = kin.frames[fid]
     for f in kin.frames:
         if (f.type == pin.FrameType.BODY and f.parentJoint == target.parentJoint
