@@ -57,7 +57,7 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
     ".htm": (b"<!DOCTYPE html>",),
     ".png": (b"\x89PNG",),
     ".gif": (b"GIF87a", b"GIF89a"),
-    ".xml": (b"<mujoco",),
+    ".xml": (b"<!-- Written by pinlin export-mjcf",),   # pinlin.mjcf.MJCF_MARKER
     ".npz": (b"PK\x03\x04", b"PK\x05\x06"),
     ".mat": (b"MATLAB",),
     ".json": (b"{",),

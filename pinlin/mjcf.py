@@ -285,6 +285,11 @@ def _add_contacts(spec: mujoco.MjSpec, system, bodies: set[str], solref: np.ndar
             eq.data[10] = 1.0    # torque scale
 
 
+#: How the MJCF pinlin writes begins (an XML comment before <mujoco>): an existing .xml
+#: is replaced only when it begins so (:data:`pinlin.files.SIGNATURES`).
+MJCF_MARKER = "<!-- Written by pinlin export-mjcf"
+
+
 def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray | None = None,
            key: str = "operating_point") -> str:
     """The MJCF text of ``ms``; with ``q`` (and ``v``), a keyframe ``key`` holding pinlin's
@@ -292,7 +297,7 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
     own spec is left as it was). MuJoCo's writer keeps 6 digits, which opens a held foot by
     ~1e-6 m: the bodies' placements and inertias, pinlin's sites and the key are rewritten at
     full precision. Generalized forces have no keyframe field: inputs that hold the posture
-    still need applying.
+    still need applying. The text begins with :data:`MJCF_MARKER`.
 
     Raises:
         MujocoError: MuJoCo cannot write the model.
@@ -326,7 +331,8 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
                                 {"pos": m.site_pos[i], "quat": m.site_quat[i]})
     if q is not None:
         xml = _exact_attributes(xml, f'<key name="{key}"', {"qpos": qpos, "qvel": qvel})
-    return xml
+    name = system.scene.name.replace("--", "- -")    # "--" may not appear in a comment
+    return f"{MJCF_MARKER} from scene '{name}' -->\n" + xml
 
 
 def _next(xml: str, text: str, start: int) -> int:

@@ -408,7 +408,7 @@ def test_file_size_limit_leaves_the_old_model_intact(suffix, tmp_path, pendulum)
 
 def test_file_size_limit_leaves_the_old_mjcf_intact(tmp_path):
     out = tmp_path / "scene.xml"
-    out.write_text("<mujoco/>\n")
+    out.write_text("<!-- Written by pinlin export-mjcf from scene 'x' -->\n<mujoco/>\n")
     before = snapshot(tmp_path)
     res = run_limited(["export-mjcf", "double_pendulum", "-o", str(out)], limit=100,
                       cwd=tmp_path)
@@ -697,4 +697,14 @@ def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content,
     before = snapshot(tmp_path)
     code, _, err = cli(capfd, "linearize", "double_pendulum", "--out", target)
     assert_refused(code, err, target.name, "pinlin does not replace it")
+    assert snapshot(tmp_path) == before
+
+
+def test_export_keeps_a_hand_written_mjcf(capfd, tmp_path):
+    """pinlin's MJCF begins with its own comment: a user's MJCF at the output name stays."""
+    mine = tmp_path / "robot.xml"
+    mine.write_text('<mujoco model="mine"><worldbody/></mujoco>\n')
+    before = snapshot(tmp_path)
+    code, _, err = cli(capfd, "export-mjcf", "double_pendulum", "-o", mine)
+    assert_refused(code, err, "robot.xml", "pinlin does not replace it")
     assert snapshot(tmp_path) == before
