@@ -23,6 +23,15 @@ Output matrices: C and D are constant when the output is the state or joint coor
 (stored once); frame outputs need the frame Jacobian at every point
 (:func:`pinlin.formulations.independent.output_matrices`, as :func:`pinlin.linearize` does).
 
+Second-order matrices (``second_order=True``, opt-in): M, C_damp and K of every point, as
+:func:`pinlin.linearize` gives them (Bu = S is constant). On the batch path they cost one
+``pin.crba`` per point (M, its upper triangle mirrored) and three copies: the same
+``computeABADerivatives`` call leaves the RNEA derivatives at (q, v, ddq) in
+``data.dtau_dq`` and ``data.dtau_dv`` (Pinocchio computes ddq_dq = -M^-1 dtau_dq from them),
+so K = dtau_dq + diag(k) and C_damp = dtau_dv + diag(c) exactly as
+:func:`pinlin.derivatives.second_order_terms` forms them, without a product M A and its
+rounding; C_damp is zero where the point has no velocity terms (v = 0, no damping).
+
 The arrays handed to :func:`fill` must be zero-filled (``np.zeros``, a fresh shared-memory
 file): the structural zeros of A and B are not written again.
 """
@@ -42,6 +51,8 @@ from .exceptions import ModelError, PinlinError
 from .mass_bound import diagonal_bound, suspect
 from .system import System
 
+#: The per-point second-order stacks of ``second_order=True`` (Bu = S is constant).
+SECOND_ORDER = ("M", "C_damp", "K")
 #: Points per block of the batch kernel: a block's results (Talos: 65 kB a point) are screened
 #: for NaN and inf while they are still in the cache.
 BLOCK = 32
@@ -56,12 +67,15 @@ class Options:
         step: Finite-difference step(s) for fd3/fd5 (see :func:`pinlin.linearize`), or None.
         frozen: For a mechanism, the partition of the trajectory's point 0
             (:class:`pinlin.trajectory_loops.FrozenPartition`); None for an open chain.
+        second_order: Also compute M, C_damp and K per point (open chains only).
     """
 
     derivatives: str = "analytic"
     step: float | Mapping[str, float] | None = None
     #: A mechanism's partition, frozen at point 0 (:mod:`pinlin.trajectory_loops`), or None.
     frozen: Any = None
+    #: Whether M, C_damp and K are stored per point (:class:`Layout` ``second_order``).
+    second_order: bool = False
 
 
 def batch_path(system: System, options: Options) -> bool:
@@ -86,6 +100,9 @@ class Layout:
     the results ``vp`` (N, nv) (projected velocities), ``acc`` (N, nv) (accelerations),
     ``lam`` (N, m) (constraint forces) and ``dv`` (N,) (size of the velocity correction);
     its C varies whenever the scene names outputs.
+
+    With ``second_order`` (open chains), the results ``M``, ``C_damp`` and ``K`` (N, nv, nv)
+    [kg, kg*m^2; N*m*s/rad ...; N*m/rad ...]: the mass, velocity and stiffness matrices.
     """
 
     points: int
@@ -97,10 +114,13 @@ class Layout:
     has_y: bool
     nx: int = 0
     m: int = 0
+    second_order: bool = False
 
     @classmethod
-    def of(cls, system: System, points: int, nz: int | None = None) -> Layout:
-        """The layout of ``points`` points; ``nz``: a mechanism's independent coordinates."""
+    def of(cls, system: System, points: int, nz: int | None = None,
+           second_order: bool = False) -> Layout:
+        """The layout of ``points`` points; ``nz``: a mechanism's independent coordinates;
+        ``second_order``: with the stacks M, C_damp, K."""
         spec = system.outputs
         loops = nz is not None
         n = 2 * (system.nv if nz is None else nz)
@@ -108,7 +128,7 @@ class Layout:
         frames = spec is not None and (bool(spec.frames) or loops)
         return cls(points, system.nq, system.nv, len(system.actuated), p, frames,
                    spec is not None, n if loops else 0,
-                   system.constraints.size if loops else 0)
+                   system.constraints.size if loops else 0, bool(second_order))
 
     @property
     def n(self) -> int:
@@ -132,6 +152,9 @@ class Layout:
             out["C"] = (N, self.p, n)
         if self.has_y:
             out["y"] = (N, self.p)
+        if self.second_order:
+            for key in SECOND_ORDER:
+                out[key] = (N, self.nv, self.nv)
         return out
 
     def offsets(self) -> tuple[dict[str, int], int]:
@@ -260,9 +283,10 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     minv_diag = np.empty((min(BLOCK, hi - lo), system.nv))
     bound = diagonal_bound(system, Q)
     limit = system._refuse_limit
+    kernel = _fill_second_order if options.second_order else _fill_batch
     for start in range(lo, hi, BLOCK):  # blocks small enough to screen while in cache
         stop = min(hi, start + BLOCK)
-        _fill_batch(system, arrays, start, stop, plan, tau[start - lo:stop - lo], minv_diag)
+        kernel(system, arrays, start, stop, plan, tau[start - lo:stop - lo], minv_diag)
         if system.outputs is not None:
             _fill_outputs(system, arrays, start, stop)
         _screen(system, arrays, start, stop, suspect(bound, minv_diag[:stop - start], limit))
@@ -304,13 +328,54 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
         dg[k - lo] = Minv.diagonal()
 
 
+def _fill_second_order(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
+                       plan: _Plan, tau: np.ndarray, minv_diag: np.ndarray) -> None:
+    """:func:`_fill_batch` plus M, C_damp and K of points lo:hi (module docstring): the RNEA
+    derivatives the ABA derivatives leave in ``data.dtau_dq``/``data.dtau_dv``, and M from
+    ``pin.crba`` (its upper triangle, mirrored), as :func:`pinlin.linearize` forms them."""
+    model, data, nv = system.model, system.data, system.nv
+    Q, V = arrays["q"], arrays["v"]
+    A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
+    M, C, K = arrays["M"], arrays["C_damp"], arrays["K"]
+    Aq, Av, Bv, acc = A[:, nv:, :nv], A[:, nv:, nv:], B[:, nv:], f0[:, nv:]
+    cols = system.actuated_columns
+    ks, cs = plan.spring_cols, plan.damping_cols
+    stiffness, damping = system.stiffness[ks], system.damping[cs]
+    derivatives, crba = pin.computeABADerivatives, pin.crba
+    ddq = data.ddq
+    dg = minv_diag[:hi - lo]
+    for k in range(lo, hi):
+        dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
+        Aq[k] = dq
+        Av[k] = dv
+        if ks.size:
+            Aq[k][:, ks] -= Minv[:, ks] * stiffness
+        if cs.size:
+            Av[k][:, cs] -= Minv[:, cs] * damping
+        Bv[k] = Minv[:, cols]
+        acc[k] = ddq
+        dg[k - lo] = Minv.diagonal()
+        K[k] = data.dtau_dq  # d rnea / dq at (q, v, ddq): dq = -M^-1 dtau_dq
+        C[k] = data.dtau_dv
+        M[k] = crba(model, data, Q[k])  # after the copies: the same workspace
+    lower = np.tril_indices(nv, -1)  # Pinocchio 4 fills both triangles, older ones the upper
+    Mb = M[lo:hi]
+    Mb[:, lower[0], lower[1]] = Mb[:, lower[1], lower[0]]
+    if ks.size:  # springs act on 1-DoF joints: d(difference)/d(dq) = 1
+        K[lo:hi, ks, ks] += stiffness
+    if cs.size:
+        C[lo:hi, cs, cs] += damping
+    else:  # no velocity terms at a point at rest without damping: C_damp = 0 exactly
+        C[lo:hi][~V[lo:hi].any(axis=1)] = 0.0
+
+
 def _screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
             bad: np.ndarray) -> None:
     """Mark ``bad`` and the non-finite points of lo:hi in ``arrays["bad"]``: one sum per
     point and matrix (NaN or inf makes it non-finite; so may finite entries that overflow,
     which :func:`check` tells apart)."""
     nv = system.nv
-    for key in ("f0", "A", "B", "C"):
+    for key in ("f0", "A", "B", "C", *SECOND_ORDER):
         stack = arrays.get(key)
         if stack is None or not stack.size:
             continue
@@ -337,6 +402,9 @@ def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, h
             raise at_point(exc, k) from None
         A[k] = model.A
         B[k] = model.B
+        if options.second_order:
+            for key in SECOND_ORDER:
+                arrays[key][k] = getattr(model, key)
         if model.f0 is not None:
             f0[k] = model.f0
         if y is not None:
@@ -394,7 +462,7 @@ def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
             system.mass_inverse(arrays["q"][k])
         except ModelError as exc:
             raise at_point(exc, k) from None
-        where = [key for key in ("f0", "A", "B", "C") if key in arrays
+        where = [key for key in ("f0", "A", "B", "C", *SECOND_ORDER) if key in arrays
                  and not np.all(np.isfinite(arrays[key][k]))]
         if where:
             raise ModelError(f"trajectory point {k}: scene '{system.scene.name}': the linear "
@@ -403,5 +471,5 @@ def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
         # else: finite entries whose sum overflowed, and a mass matrix System accepts
 
 
-__all__ = ["BLOCK", "Layout", "Options", "batch_path", "check", "constant_outputs", "fill",
-           "generalized_forces", "kinematic_rows"]
+__all__ = ["BLOCK", "SECOND_ORDER", "Layout", "Options", "batch_path", "check",
+           "constant_outputs", "fill", "generalized_forces", "kinematic_rows"]

@@ -24,12 +24,15 @@ HISTORY_FORMATS = (".csv", ".npz")
 
 class _PointsBar:
     """``progress(done, total)`` for :func:`pinlin.linearize_trajectory`: a one-line bar on
-    stderr, drawn once the run has taken :data:`PROGRESS_AFTER` seconds."""
+    stderr, drawn once the run has taken :data:`PROGRESS_AFTER` seconds. A mechanism of
+    ``points`` points reports 2 ``points`` steps (assembled, then linearized): the bar names
+    the pass."""
 
-    def __init__(self, enabled: bool) -> None:
+    def __init__(self, enabled: bool, points: int = 0) -> None:
         import time
 
         self.enabled, self.start, self.drawn = enabled, time.perf_counter(), False
+        self.points = points
 
     def __call__(self, done: int, total: int) -> None:
         import time
@@ -39,7 +42,12 @@ class _PointsBar:
             return
         width = 30
         filled = int(width * done / total)
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} points")
+        text = f"{done}/{total} points"
+        if self.points and total == 2 * self.points:
+            n = self.points
+            text = (f"{done}/{n} points assembled" if done < n else
+                    f"{done - n}/{n} points linearized (all assembled)")
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {text}")
         sys.stderr.flush()
         self.drawn = True
         if done == total:
@@ -95,21 +103,28 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
         raise ArgumentError("--dt", f"expected a sample time > 0 [s], got {args.dt:g}")
     if args.discretization is not None and args.dt is None:
         raise ArgumentError("--discretization", "applies with --dt (the sample time [s])")
+    if args.second_order and args.dt is not None:
+        raise ArgumentError("--second-order", "M, C_damp, K, Bu describe the continuous "
+                                              "models; a discretized model (--dt) has none: "
+                                              "leave out one of the two")
     scene = Scene.resolve(args.target)
     q, v, u, t = read_states(args.states, scene.system)
     client = executor = None
     if args.dask is not None:
         client, executor = _dask_executor(args.dask)
-    bar = _PointsBar(not args.no_progress)
+    bar = _PointsBar(not args.no_progress, len(q))
     start = time.perf_counter()
     try:
         model = linearize_trajectory(scene, q, v, u, t, workers=args.workers,
                                      executor=executor, derivatives=args.derivatives,
-                                     step=args.step, progress=bar)
+                                     step=args.step, progress=bar,
+                                     second_order=args.second_order)
     except ArgumentError as exc:
         bar.close()
         if exc.argument in ("q", "v", "u", "t"):
             raise ModelFileError(args.states, f"{exc.argument}: {exc.reason}") from None
+        if exc.argument == "second_order":
+            raise ArgumentError("--second-order", exc.reason) from None
         raise
     except ShapeError as exc:
         bar.close()
@@ -130,6 +145,8 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
           f"{plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
           f"derivatives ({model.info['path']}), {where}: {elapsed:.3g} s "
           f"({1e6 * elapsed / n_points:.3g} us per point)")
+    if model.M is not None:
+        print("second-order matrices M, C_damp, K, Bu stored at every point")
     if args.dt is not None:
         method = args.discretization or "zoh"
         model = model.discretize(args.dt, method)
@@ -399,6 +416,8 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
                      help="discretize the models with this sample time [s]")
     tra.add_argument("--discretization", choices=("zoh", "euler"), default=None,
                      help="with --dt: zero-order hold (default) or semi-implicit Euler")
+    tra.add_argument("--second-order", action="store_true",
+                     help="also store M, C_damp, K (and Bu) of every point (open chains)")
     tra.add_argument("--no-progress", action="store_true", help="no progress bar")
     tra.set_defaults(func=_cmd_trajectory)
 

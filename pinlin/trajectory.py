@@ -29,20 +29,21 @@ import scipy.linalg as sla
 
 from . import trajectory_loops as loops
 from .batch import Layout, Options, batch_path, check, constant_outputs, fill
-from .derivatives import BACKENDS, resolve_steps
+from .derivatives import resolve_steps
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .linear_model import LinearModel
 from .operating_point import OperatingPoint
 from .resources import check_memory
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
-from .trajectory_inputs import check_normalized, points, positive_int, system_of, times
+from .trajectory_inputs import check_normalized, check_options, points, system_of, times
 
 #: Points per progress report (and per vectorized block) when one process does the work.
 SERIAL_BLOCK = 256
 #: Points per block of the vectorized zero-order hold (bounds its temporary memory).
 ZOH_BLOCK = 128
 _METHODS = ("zoh", "euler")
+_SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,6 +71,11 @@ class TrajectoryModel:
             every point; its ``q`` are the assembled configurations, ``v`` the velocities
             projected onto the constraint nullspace, ``a`` the accelerations of all nv
             coordinates.
+        M, C_damp, K: (N, nv, nv) mass [kg, kg*m^2], velocity (damping and gyroscopic) and
+            stiffness matrices of every point, Bu: (N, nv, m) input matrix (one matrix,
+            broadcast): the second-order model M dq'' + C_damp dq' + K dq = Bu du of
+            :class:`LinearModel`, with ``linearize_trajectory(..., second_order=True)``
+            (open chains); else None.
     """
 
     A: np.ndarray
@@ -90,6 +96,10 @@ class TrajectoryModel:
     info: Mapping[str, Any] = field(default_factory=dict)
     dt: float = 0.0
     lam: np.ndarray | None = None
+    M: np.ndarray | None = None
+    C_damp: np.ndarray | None = None
+    K: np.ndarray | None = None
+    Bu: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         names = {}
@@ -108,10 +118,15 @@ class TrajectoryModel:
         shapes = {"A": (N, n, n), "B": (N, n, m), "C": (N, p, n), "D": (N, p, m),
                   "f0": (N, n), "v": (N, nv), "u": (N, m), "a": (N, nv), "t": (N,),
                   "y": (N, p), "q": (N, np.shape(self.q)[-1] if np.ndim(self.q) == 2 else -1),
-                  "lam": (N, np.shape(self.lam)[-1] if np.ndim(self.lam) == 2 else -1)}
+                  "lam": (N, np.shape(self.lam)[-1] if np.ndim(self.lam) == 2 else -1),
+                  "M": (N, nv, nv), "C_damp": (N, nv, nv), "K": (N, nv, nv), "Bu": (N, nv, m)}
+        given = [key for key in _SECOND_ORDER if getattr(self, key) is not None]
+        if given and len(given) < len(_SECOND_ORDER):
+            raise ArgumentError(given[0], "the second-order matrices M, C_damp, K, Bu come "
+                                          "together: give all four or none")
         for key, shape in shapes.items():
             value = getattr(self, key)
-            if value is None and key in ("t", "y", "lam"):
+            if value is None and key in ("t", "y", "lam", *_SECOND_ORDER):
                 continue
             arr = _stack(key, value, shape)
             object.__setattr__(self, key, arr)
@@ -150,9 +165,10 @@ class TrajectoryModel:
 
     def at(self, k: int) -> LinearModel:
         """The model of point ``k`` (negative: from the end) as a :class:`LinearModel`: what
-        :func:`pinlin.linearize` gives at (q[k], v[k], u[k]), to rounding, without the
-        second-order matrices (M, C_damp, K, Bu are None). Its operating point carries q, v,
-        u, a and y; its ``residual`` (M a0) is None: a batch does not compute M.
+        :func:`pinlin.linearize` gives at (q[k], v[k], u[k]), to rounding, with the
+        second-order matrices M, C_damp, K, Bu where the trajectory has them
+        (``second_order=True``), else None. Its operating point carries q, v, u, a and y;
+        its ``residual`` (M a0) is None.
 
         Raises:
             ArgumentError: ``k`` is not an integer in [-N, N).
@@ -186,14 +202,18 @@ class TrajectoryModel:
         return LinearModel.assembled(
             A=self.A[k], B=self.B[k], C=self.C[k], D=self.D[k], state_names=self.state_names,
             input_names=self.input_names, output_names=self.output_names, E=None, F=None,
-            M=None, C_damp=None, K=None, Bu=None, operating_point=op, G=None, name=self.name,
-            info=info, f0=self.f0[k] if moving else None, dt=self.dt)
+            operating_point=op, G=None, name=self.name, info=info,
+            f0=self.f0[k] if moving else None, dt=self.dt,
+            **{key: None if getattr(self, key) is None else getattr(self, key)[k]
+               for key in _SECOND_ORDER})
 
     def discretize(self, dt: float, method: str = "zoh") -> TrajectoryModel:
         """The discrete models over sample time ``dt`` [s], point by point, as
         :meth:`LinearModel.discretize` gives them (:mod:`pinlin.discretization`), vectorized:
         ``"zoh"`` by batched matrix exponentials, ``"euler"`` (semi-implicit: v, then dq with
-        the new v) by batched products. C, D, the states and ``a`` are unchanged.
+        the new v) by batched products. C, D, the states and ``a`` are unchanged; the
+        second-order matrices describe the continuous model and are left out (None), as
+        :meth:`LinearModel.discretize` leaves them out.
 
         Raises:
             ArgumentError: ``dt`` not a positive finite number [s], an unknown method, or
@@ -214,6 +234,7 @@ class TrajectoryModel:
             arr.setflags(write=False)
         return TrajectoryModel.trusted(**{
             **self.__dict__, "A": A_d, "B": B_d, "f0": f_d, "dt": dt,
+            **dict.fromkeys(_SECOND_ORDER),
             "info": {**self.info, "discretization": {"method": method, "dt": dt}}})
 
     # ----------------------------------------------------------------------------------------
@@ -310,8 +331,8 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
                          executor: Executor | None = None, derivatives: str = "analytic",
                          chunk: int | None = None,
                          step: float | Mapping[str, float] | None = None,
-                         progress: Callable[[int, int], None] | None = None
-                         ) -> TrajectoryModel:
+                         progress: Callable[[int, int], None] | None = None,
+                         second_order: bool = False) -> TrajectoryModel:
     """Linear models of a scene at N states, stacked (see :class:`TrajectoryModel`).
 
     Point k is the model :func:`pinlin.linearize` gives at ``q=q[k], v=v[k], u=u[k]``
@@ -345,12 +366,21 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
         chunk: Points per task for workers and executors (default: about 4 tasks per worker,
             16 tasks for an executor).
         step: Finite-difference step(s) for fd3/fd5, as for :func:`pinlin.linearize`.
-        progress: Called as ``progress(done, total)`` [points] as the work advances.
+        progress: Called as ``progress(done, total)`` [points] as the work advances. A
+            mechanism's points are assembled one after the other first (in this process),
+            then linearized: its total is 2N, the first N steps the points assembled, the
+            next N the points linearized.
+        second_order: Also store M, C_damp, K (N, nv, nv) and Bu of every point, so that
+            ``at(k)`` carries the second-order matrices :func:`pinlin.linearize` gives there
+            (open chains; on the batch path one ``pin.crba`` more per point,
+            :mod:`pinlin.batch`). Mechanisms refuse it: a single model at a moving state of a
+            mechanism has none.
 
     Raises:
         ShapeError: an array of the wrong shape (the message names the argument).
         ArgumentError: NaN, inf or out-of-range entries, configurations that are not
-            normalized (naming the argument and the first bad row), or a bad option.
+            normalized (naming the argument and the first bad row), or a bad option
+            (``second_order=True`` on a mechanism).
         ModelError: a point where the model cannot be built (a singular mass matrix; for a
             mechanism, a point where the independent coordinates of point 0 cannot
             parametrize it), naming the first such point; a mechanism with what
@@ -361,25 +391,8 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
             (:func:`pinlin.set_memory_limit`).
     """
     system = system_of(scene)
-    if not isinstance(derivatives, str) or derivatives not in BACKENDS:
-        raise ArgumentError("derivatives", f"expected one of "
-                                           f"{', '.join(map(repr, BACKENDS))}, got "
-                                           f"{derivatives!r}")
-    if step is not None:
-        if derivatives == "analytic":
-            raise ArgumentError("step", "a finite-difference step applies to derivatives "
-                                        "'fd3' and 'fd5'; the analytic derivatives take none")
-        resolve_steps(derivatives, step)
-    workers = positive_int("workers", workers)
-    chunk = positive_int("chunk", chunk, allow_none=True)
-    if executor is not None and not isinstance(executor, Executor):
-        raise ArgumentError("executor", "expected a concurrent.futures.Executor (for Dask: "
-                                        f"client.get_executor()), got {type(executor).__name__}")
-    if executor is not None and workers > 1:
-        raise ArgumentError("executor", "give workers > 1 (processes on this machine) or an "
-                                        "executor, not both")
-    if progress is not None and not callable(progress):
-        raise ArgumentError("progress", "expected a function progress(done, total)")
+    workers, chunk, second_order = check_options(system, derivatives, step, workers, chunk,
+                                                executor, progress, second_order)
     nu = len(system.actuated)
     Q = points("q", q, system.nq, "configurations", None, POSITION_LIMIT)
     N = Q.shape[0]
@@ -394,11 +407,14 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
         loops.refuse(system, derivatives)
         check_memory(Q.nbytes, f"scene '{system.scene.name}': the assembled configurations "
                                f"of {N} points", "8 bytes a number")
-        inputs["q"], frozen, inputs["cond"], moved = loops.close_loops(system, Q)
-    options = Options(derivatives, step, frozen)
-    layout = Layout.of(system, N, None if frozen is None else len(frozen.independent))
+        inputs["q"], frozen, inputs["cond"], moved = loops.close_loops(
+            system, Q, None if progress is None else loops.first_pass(progress, N))
+        progress = None if progress is None else loops.second_pass(progress, N)
+    options = Options(derivatives, step, frozen, second_order)
+    layout = Layout.of(system, N, None if frozen is None else len(frozen.independent),
+                       second_order)
     check_memory(layout.offsets()[1], f"scene '{system.scene.name}': the models of {N} points",
-                 "A, B and f0 stacked, 8 bytes a number")
+                 "A, B, f0 (and M, C_damp, K) stacked, 8 bytes a number")
     if executor is not None:
         from .parallel import run_executor
 
@@ -445,7 +461,14 @@ def _assemble(system: System, arrays: Mapping[str, np.ndarray], layout: Layout,
     }
     if options.derivatives != "analytic":
         info["step"] = resolve_steps(options.derivatives, options.step)
+    second = dict.fromkeys(_SECOND_ORDER)
+    if options.second_order:
+        second = {key: arrays[key] for key in ("M", "C_damp", "K")}
+        second["Bu"] = np.broadcast_to(system.input_matrix, (N, nv, nu))
+        for arr in second.values():
+            arr.setflags(write=False)
     return TrajectoryModel.trusted(
+        **second,
         A=arrays["A"], B=arrays["B"], C=C, D=D, f0=arrays["f0"], q=Q, v=V, u=arrays["u"],
         a=arrays["f0"][:, nv:], t=t, y=y, state_names=system.state_names,
         input_names=system.input_names,

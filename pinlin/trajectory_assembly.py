@@ -24,6 +24,8 @@ predictor need them, and so does the model of the point.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
@@ -92,10 +94,11 @@ class _Closures:
 
 
 def close(system, plan: lk.ClosurePlan, Q: np.ndarray, q0: np.ndarray, rows: np.ndarray,
-          z: np.ndarray, dep: np.ndarray) -> tuple[np.ndarray, np.ndarray, int | None,
-                                                   Exception | None]:
+          z: np.ndarray, dep: np.ndarray, report: Callable[[int], None] | None = None,
+          every: int = 256) -> tuple[np.ndarray, np.ndarray, int | None, Exception | None]:
     """Assemble points 1.. of ``Q`` (N, nq) [m, rad] after point 0's solution ``q0`` (module
-    docstring), in the frozen partition (rows, z, dep).
+    docstring), in the frozen partition (rows, z, dep); ``report(k)`` is called with the
+    number of points assembled every ``every`` points.
 
     Returns:
         (Q assembled (N, nq), the frame Jacobians there (N, F, 6, nv), the index of the point
@@ -116,6 +119,8 @@ def close(system, plan: lk.ClosurePlan, Q: np.ndarray, q0: np.ndarray, rows: np.
         if closed[k]:
             out[k] = q
             evaluate(q, J[k])
+            if report is not None and (k + 1) % every == 0:
+                report(k + 1)
             continue
         # Start: point k-1's dependent coordinates moved along the manifold's tangent.
         back = pin.difference(model, q, out[k - 1])
@@ -135,6 +140,8 @@ def close(system, plan: lk.ClosurePlan, Q: np.ndarray, q0: np.ndarray, rows: np.
                 return out, J, k, exc
             evaluate(solved, J[k])
         out[k] = solved
+        if report is not None and (k + 1) % every == 0:
+            report(k + 1)
     return out, J, None, None
 
 

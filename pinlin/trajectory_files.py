@@ -14,8 +14,9 @@
 
 **Models** (:meth:`TrajectoryModel.save`): ``.npz`` or MATLAB ``.mat`` holding ``A``, ``B``,
 ``C``, ``D``, ``f0``, ``q``, ``v``, ``u``, ``a``, ``y``, ``t`` when there are times and
-``lam`` for a mechanism, the
-signal names and a JSON ``meta`` (kind, name, info, dt). C, D and y that do not vary are
+``lam`` for a mechanism, ``M``, ``C_damp``, ``K`` (N, nv, nv) and ``Bu`` for a model with
+second-order matrices (``second_order=True``), the
+signal names and a JSON ``meta`` (kind, name, info, dt). C, D, y and Bu that do not vary are
 stored once, with a first axis of 1. Written atomically; read as
 :mod:`pinlin.model_files` reads single models (headers checked before anything is allocated,
 no pickles).
@@ -46,7 +47,9 @@ STATE_FORMATS = (".npz", ".csv")
 MODEL_FORMATS = (".npz", ".mat")
 _NAMES = ("state_names", "input_names", "output_names")
 _STACKS = ("A", "B", "C", "D", "f0", "q", "v", "u", "a")
-_CONSTANT = ("C", "D", "y")  # may be stored once
+_SECOND_ORDER = ("M", "C_damp", "K", "Bu")  # all or none
+_OPTIONAL = ("t", "y", "lam", *_SECOND_ORDER)
+_CONSTANT = ("C", "D", "y", "Bu")  # may be stored once
 
 
 def trajectory_columns(system: System) -> tuple[list[str], list[str], list[str]]:
@@ -196,7 +199,7 @@ def save_trajectory_model(model: Any, path: str | Path) -> Path:
                                    f"{' or '.join(MODEL_FORMATS)}")
     check_file_target(path)
     arrays = {k: _stored(getattr(model, k)) for k in _STACKS}
-    for key in ("y", "t", "lam"):
+    for key in _OPTIONAL:
         if getattr(model, key, None) is not None:
             arrays[key] = _stored(getattr(model, key))
     try:
@@ -239,7 +242,7 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
     if missing:
         raise ModelFileError(path, f"missing {', '.join(map(repr, missing))}")
     fields: dict[str, Any] = {k: _read_names(path, k, doc[k]) for k in _NAMES}
-    for key in (*_STACKS, "t", "y", "lam"):
+    for key in (*_STACKS, *_OPTIONAL):
         if key not in doc:
             continue
         arr = np.asarray(doc[key])
@@ -254,8 +257,11 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
     if "t" in fields:
         fields["t"] = fields["t"].reshape(-1)
     n, m, p = (len(fields[k]) for k in _NAMES)
-    for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (-1, p, m))):
-        if fields[key].size == 0:  # MATLAB keeps no shape for empty arrays
+    nv = fields["v"].shape[-1] if fields["v"].ndim == 2 else 0
+    for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (-1, p, m)),
+                       ("Bu", (1, nv, m)), ("M", (N, nv, nv)), ("C_damp", (N, nv, nv)),
+                       ("K", (N, nv, nv))):
+        if key in fields and fields[key].size == 0:  # MATLAB keeps no shape for empties
             fields[key] = fields[key].reshape(shape)
     for key in _CONSTANT:
         arr = fields.get(key)

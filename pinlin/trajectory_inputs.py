@@ -4,11 +4,14 @@ argument and, for arrays, the first bad row."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+from concurrent.futures import Executor
 from os import PathLike
 
 import numpy as np
 import pinocchio as pin
 
+from .derivatives import BACKENDS, resolve_steps
 from .exceptions import ArgumentError, ShapeError
 from .scene import Scene
 from .system import System
@@ -121,5 +124,51 @@ def positive_int(name: str, value: object, allow_none: bool = False) -> int | No
     return int(value)
 
 
-__all__ = ["NORM_TOLERANCE", "check_normalized", "points", "positive_int", "system_of",
-           "times"]
+def check_options(system: System, derivatives: object,
+                  step: float | Mapping[str, float] | None, workers: object, chunk: object,
+                  executor: object, progress: Callable[[int, int], None] | None,
+                  second_order: object) -> tuple[int, int | None, bool]:
+    """The options of :func:`pinlin.linearize_trajectory` checked: (workers, chunk,
+    second_order).
+
+    Raises:
+        ArgumentError: naming the option: an unknown backend, a step with analytic
+            derivatives, counts below 1, an executor that is not one (or with workers > 1),
+            a progress that is not callable, a second_order that is not a bool or that asks
+            a mechanism (loops, mimic couplings) for what a single model of it at a moving
+            state does not have.
+    """
+    if not isinstance(derivatives, str) or derivatives not in BACKENDS:
+        raise ArgumentError("derivatives", f"expected one of "
+                                           f"{', '.join(map(repr, BACKENDS))}, got "
+                                           f"{derivatives!r}")
+    if step is not None:
+        if derivatives == "analytic":
+            raise ArgumentError("step", "a finite-difference step applies to derivatives "
+                                        "'fd3' and 'fd5'; the analytic derivatives take none")
+        resolve_steps(derivatives, step)
+    n_workers = positive_int("workers", workers)
+    assert n_workers is not None
+    n_chunk = positive_int("chunk", chunk, allow_none=True)
+    if executor is not None and not isinstance(executor, Executor):
+        raise ArgumentError("executor", "expected a concurrent.futures.Executor (for Dask: "
+                                        f"client.get_executor()), got {type(executor).__name__}")
+    if executor is not None and n_workers > 1:
+        raise ArgumentError("executor", "give workers > 1 (processes on this machine) or an "
+                                        "executor, not both")
+    if progress is not None and not callable(progress):
+        raise ArgumentError("progress", "expected a function progress(done, total)")
+    if not isinstance(second_order, bool | np.bool_):
+        raise ArgumentError("second_order", f"expected True or False, got {second_order!r}")
+    if second_order and system.constraints:
+        raise ArgumentError("second_order", f"scene '{system.scene.name}' is a mechanism "
+                                            "(loops or mimic couplings): pinlin.linearize at "
+                                            "a moving state of a mechanism gives no M, "
+                                            "C_damp, K, Bu, so its trajectory has none; leave "
+                                            "second_order out (A, B are in its independent "
+                                            "coordinates)")
+    return n_workers, n_chunk, bool(second_order)
+
+
+__all__ = ["NORM_TOLERANCE", "check_normalized", "check_options", "points", "positive_int",
+           "system_of", "times"]

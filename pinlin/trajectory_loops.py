@@ -41,7 +41,7 @@ correction).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -68,6 +68,8 @@ WARN_CONDITION = 1e6
 #: Points per stacked block of :func:`fill` (bounds the temporaries: the delta's block of
 #: third-derivative terms is 64 x 6 x 12 x 3 numbers per array).
 BLOCK = 64
+#: Points assembled between two progress reports of the serial assembly pass.
+REPORT_EVERY = 256
 
 
 @dataclass(frozen=True)
@@ -122,13 +124,27 @@ def _at_point(exc: PinlinError, k: int) -> PinlinError:
     return at_point(exc, k)
 
 
-def close_loops(system: System, Q: np.ndarray
+def first_pass(progress: Callable[[int, int], None], N: int) -> Callable[[int], None]:
+    """``report(k)`` for :func:`close_loops`: ``progress(k, 2N)``, k points assembled (a
+    mechanism's progress counts N assembled points, then N linearized ones)."""
+    return lambda done: progress(done, 2 * N)
+
+
+def second_pass(progress: Callable[[int, int], None], N: int) -> Callable[[int, int], None]:
+    """``progress`` for the linearization pass of a mechanism of N points: ``done`` points
+    linearized are step N + done of 2N."""
+    return lambda done, total: progress(N + done, N + total)
+
+
+def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | None = None
                 ) -> tuple[np.ndarray, FrozenPartition, np.ndarray, np.ndarray]:
     """Assemble every point (module docstring, pass 1) and check the frozen partition there.
 
     Args:
         system: A system with loops or mimic couplings.
         Q: (N, nq) configurations as given [m, rad] (normalized).
+        report: Called as ``report(k)`` with the number of points assembled, every
+            :data:`REPORT_EVERY` points and at the end.
 
     Returns:
         (Q assembled (N, nq), the partition of point 0, the condition of Phi_d at each point
@@ -157,9 +173,11 @@ def close_loops(system: System, Q: np.ndarray
     out[0], condition[0] = q, part.condition
     plan = lk.plan(system)
     if plan is not None and len(part.dependent):
-        _close_stacked(system, plan, Q, frozen, out, condition)
+        _close_stacked(system, plan, Q, frozen, out, condition, report)
     else:
-        _close_per_point(system, Q, frozen, out, condition)
+        _close_per_point(system, Q, frozen, out, condition, report)
+    if report is not None:
+        report(N)
     for k in range(N):
         moved[k] = np.linalg.norm(pin.difference(model, Q[k], out[k]))
     worst = int(np.argmax(condition))
@@ -174,14 +192,16 @@ def close_loops(system: System, Q: np.ndarray
 
 
 def _close_stacked(system: System, plan: lk.ClosurePlan, Q: np.ndarray,
-                   frozen: FrozenPartition, out: np.ndarray, condition: np.ndarray) -> None:
+                   frozen: FrozenPartition, out: np.ndarray, condition: np.ndarray,
+                   report: Callable[[int], None] | None = None) -> None:
     """Points 1.. by :func:`pinlin.trajectory_assembly.close`, the conditions of Phi_d in
     one stacked SVD; the first singular point (before a point that failed to assemble) is
     refused, as :func:`_close_per_point` does."""
     rows = np.array(frozen.rows, dtype=int)
     dep = np.array(frozen.dependent, dtype=int)
     z = np.array(frozen.independent, dtype=int)
-    solved, J, failed, exc = trajectory_assembly.close(system, plan, Q, out[0], rows, z, dep)
+    solved, J, failed, exc = trajectory_assembly.close(system, plan, Q, out[0], rows, z, dep,
+                                                       report, REPORT_EVERY)
     last = len(Q) if failed is None else failed
     Gd = lk.jacobian(plan, J[1:last])[:, rows][:, :, dep]
     with np.errstate(all="ignore"):
@@ -198,7 +218,8 @@ def _close_stacked(system: System, plan: lk.ClosurePlan, Q: np.ndarray,
 
 
 def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
-                     out: np.ndarray, condition: np.ndarray) -> None:
+                     out: np.ndarray, condition: np.ndarray,
+                     report: Callable[[int], None] | None = None) -> None:
     """Points 1.. one by one: :func:`pinlin.assembly.assemble` from the previous point's
     dependent coordinates, the condition of Phi_d checked at each."""
     cons, model, N = system.constraints, system.model, len(Q)
@@ -219,6 +240,8 @@ def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
         if not condition[k] <= REFUSE_CONDITION:  # NaN too
             raise ModelError(_singular_message(system, frozen, k, condition[k]))
         out[k] = q
+        if report is not None and (k + 1) % REPORT_EVERY == 0:
+            report(k + 1)
 
 
 def _names(system: System, frozen: FrozenPartition) -> str:
@@ -343,5 +366,5 @@ def info(system: System, frozen: FrozenPartition, arrays: Mapping[str, np.ndarra
     }
 
 
-__all__ = ["REFUSE_CONDITION", "WARN_CONDITION", "FrozenPartition", "close_loops", "fill",
-           "info", "refuse"]
+__all__ = ["REFUSE_CONDITION", "REPORT_EVERY", "WARN_CONDITION", "FrozenPartition",
+           "close_loops", "fill", "first_pass", "info", "refuse", "second_pass"]
