@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .files import make_folder, write_atomic, write_text_atomic
+from .files import PNG_METADATA, make_folder, write_atomic, write_text_atomic
 
 if TYPE_CHECKING:
     from .bench import Curve, SystemResult
@@ -223,7 +223,8 @@ def plot(results: list[SystemResult], out: Path) -> None:
         fig.tight_layout()
         try:
             write_atomic(folder / f"{r.name}.png",
-                         lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=90))
+                         lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=90,
+                                                                 metadata=PNG_METADATA))
         finally:
             plt.close(fig)
 

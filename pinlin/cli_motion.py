@@ -257,7 +257,7 @@ def _plot_histories(path: Path, title: str, t: np.ndarray,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .files import write_bytes_atomic
+    from .files import PNG_METADATA, write_bytes_atomic
 
     fig, ax = plt.subplots(figsize=(7, 4))
     for label, tc, y, style in curves[:24]:
@@ -269,7 +269,7 @@ def _plot_histories(path: Path, title: str, t: np.ndarray,
         ax.legend(fontsize=7, ncol=2)
     buf = io.BytesIO()
     fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=90)
+    fig.savefig(buf, format="png", dpi=90, metadata=PNG_METADATA)
     plt.close(fig)
     write_bytes_atomic(path, buf.getvalue())
 

@@ -69,13 +69,26 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
 #: "{", every .npz is a zip): what pinlin's own files hold besides (a model's or trajectory's
 #: names, a history's columns).
 _NPZ_MEMBERS = ({"state_names.npy"}, {"t.npy", "names.npy", "values.npy"})
-_MAT_MARKER = b"state_names"
 _JSON_START = b'{\n "state_names"'
+
+
+#: The text chunk every PNG pinlin writes carries (``metadata=PNG_METADATA`` for matplotlib),
+#: the comment of every GIF, and what an HTML report says near its top.
+PNG_METADATA = {"Software": "pinlin"}
+PNG_TEXT = b"Software\x00pinlin"
+GIF_COMMENT = b"Written by pinlin"
+_HTML_TITLE = b"<title>pinlin "
+#: Bytes read from the head of a file to find those markers (text chunks precede the image
+#: data; a GIF's comment follows its colour table of at most 768 bytes).
+_HEAD = 8192
 
 
 def _pinlin_content(target: Path, suffix: str) -> bool:
     """Whether ``target`` (a file of the kind ``suffix`` names) holds what pinlin writes there:
-    for .npz, .mat and .json its own arrays or keys; other kinds are told by their head."""
+    pinlin's marker in a PNG, GIF or HTML head, a CSV header of t and named signals
+    (``q:...``), the arrays of a model, trajectory or history in an .npz or .mat (read from
+    the archive's listing, not the data), a model's first key in .json; other kinds are told by
+    their head alone."""
     import zipfile
 
     try:
@@ -84,11 +97,25 @@ def _pinlin_content(target: Path, suffix: str) -> bool:
                 names = set(archive.namelist())
             return any(member <= names for member in _NPZ_MEMBERS)
         if suffix == ".mat":
-            return _MAT_MARKER in target.read_bytes()
+            from scipy.io import whosmat
+
+            names = {name for name, _, _ in whosmat(str(target))}
+            return {"state_names", "meta"} <= names
+        with target.open("rb") as fh:
+            head = fh.read(_HEAD)
         if suffix == ".json":
-            with target.open("rb") as fh:
-                return fh.read(len(_JSON_START)) == _JSON_START
-    except (OSError, zipfile.BadZipFile):
+            return head.startswith(_JSON_START)
+        if suffix == ".png":
+            return PNG_TEXT in head
+        if suffix == ".gif":
+            return GIF_COMMENT in head
+        if suffix in (".html", ".htm"):
+            return _HTML_TITLE in head
+        if suffix == ".csv":
+            columns = head.split(b"\n", 1)[0].split(b",")
+            return columns[0] == b"t" and len(columns) > 1 and all(b":" in c
+                                                                   for c in columns[1:])
+    except (OSError, ValueError, zipfile.BadZipFile):
         return False
     return True
 
@@ -97,6 +124,9 @@ def check_replaceable(path: Path, target: Path) -> None:
     """Refuse to replace an existing non-empty ``target`` (``path``, links followed) that does
     not begin as the files pinlin writes with its suffix begin (:data:`SIGNATURES`), or, for
     the data formats, does not hold pinlin's own names (:func:`_pinlin_content`)."""
+    if os.path.lexists(target) and not target.is_file() and not target.is_dir():
+        raise ModelFileError(path, "exists and is not a regular file (a pipe, socket, device "
+                                   "or a loop of links); pinlin does not replace it")
     heads = SIGNATURES.get(path.suffix.lower())      # the kind the caller writes
     if heads is None or not target.is_file():
         return
@@ -201,7 +231,7 @@ def check_ours(path: str | Path, marker: str | bytes) -> None:
             start = fh.read(len(head))
     except OSError as exc:
         raise ModelFileError(path, f"cannot read it: {exc.strerror or exc}") from None
-    if start != head:
+    if start != head or not _pinlin_content(path, path.suffix.lower()):
         shown = marker if isinstance(marker, str) else marker.decode("latin-1").strip("\x89")
         raise ModelFileError(path, f"exists and was not written by pinlin (it does not start "
                                    f"with \"{shown}\"); pinlin does not overwrite it: move it "

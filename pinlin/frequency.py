@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import ArgumentError, ModelError
-from .files import check_file_target, write_atomic
+from .files import PNG_METADATA, check_file_target, write_atomic
 from .linear_model import LinearModel
 
 #: A Bode figure draws at most this many (output, input) curves: beyond, select some with
@@ -233,7 +233,7 @@ def bode(model: LinearModel, w: np.ndarray | Sequence[float], path: str | Path,
     ax_mag.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     try:
         write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=80,
-                                                  bbox_inches="tight"))
+                                                  bbox_inches="tight", metadata=PNG_METADATA))
     finally:
         plt.close(fig)
     return fr

@@ -22,6 +22,8 @@ import zlib
 
 import numpy as np
 
+from .files import PNG_TEXT
+
 WIDTH, HEIGHT = 320, 240
 BACKENDS = ("egl", "osmesa")
 #: Seconds a child process may take (import, compile, render) before it counts as failed.
@@ -43,7 +45,8 @@ def encode_png(rgb: np.ndarray) -> bytes:
         return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
 
     return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+            + chunk(b"tEXt", PNG_TEXT) + chunk(b"IDAT", zlib.compress(raw, 9))
+            + chunk(b"IEND", b""))
 
 
 def render_png(xml: str, qpos: np.ndarray, width: int = WIDTH, height: int = HEIGHT) -> bytes:

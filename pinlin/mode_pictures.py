@@ -24,7 +24,13 @@ import numpy as np
 
 from .exceptions import ArgumentError, ModelFileError
 from .figure_view import View, best_view
-from .files import as_path, check_file_target, write_bytes_atomic
+from .files import (
+    GIF_COMMENT,
+    PNG_METADATA,
+    as_path,
+    check_file_target,
+    write_bytes_atomic,
+)
 from .modal import ModalAnalysis
 from .stick_figure import AXIS_LENGTH, ModeMotion, Skeleton, mode_motion
 
@@ -270,14 +276,17 @@ def picture(scene, modes: ModalAnalysis, indices: Sequence[int] | int | None = N
     fig.suptitle(f"Modes of '{modes.model.name}' (grey: q0)", fontsize=9, y=0.995,
                  va="top")
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format="png", dpi=dpi, metadata=PNG_METADATA)
     if not palette:
         return buf.getvalue()
     from PIL import Image
+    from PIL.PngImagePlugin import PngInfo
 
     image = Image.open(io.BytesIO(buf.getvalue())).convert("RGB")
     out = io.BytesIO()
-    image.quantize(colors=64, dither=0).save(out, format="PNG", optimize=True)
+    info = PngInfo()
+    info.add_text(*next(iter(PNG_METADATA.items())))
+    image.quantize(colors=64, dither=0).save(out, format="PNG", optimize=True, pnginfo=info)
     return out.getvalue()
 
 
@@ -334,7 +343,7 @@ def animation(scene, modes: ModalAnalysis, indices: Sequence[int] | int | None =
         images.append(Image.fromarray(rgba[..., :3]).quantize(colors=64, dither=0))
     buf = io.BytesIO()
     images[0].save(buf, format="GIF", save_all=True, append_images=images[1:],
-                   duration=GIF_FRAME_MS, loop=0, optimize=True)
+                   duration=GIF_FRAME_MS, loop=0, optimize=True, comment=GIF_COMMENT)
     return buf.getvalue()
 
 

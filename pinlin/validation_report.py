@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import write_atomic, write_bytes_atomic, write_text_atomic
+from .files import PNG_METADATA, write_atomic, write_bytes_atomic, write_text_atomic
 
 #: First line of every file pinlin writes into a report folder: an existing file there that
 #: does not start so is the user's and is never replaced.
@@ -229,7 +229,8 @@ def _plot(res, path: Path) -> None:
     ax.legend(fontsize=8)
     fig.tight_layout()
     try:
-        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=70))
+        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=70,
+                                                  metadata=PNG_METADATA))
     finally:
         plt.close(fig)
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import ArgumentError
-from .files import make_folder, write_bytes_atomic
+from .files import PNG_METADATA, make_folder, write_bytes_atomic
 from .linear_model import LinearModel
 from .modal import ModalAnalysis
 
@@ -228,7 +228,8 @@ def _save(fig: object, path: Path) -> None:
 
     buffer = io.BytesIO()
     try:
-        fig.savefig(buffer, format="png", dpi=70)  # type: ignore[attr-defined]
+        fig.savefig(buffer, format="png", dpi=70,  # type: ignore[attr-defined]
+                    metadata=PNG_METADATA)
     finally:
         plt.close(fig)  # type: ignore[arg-type]
     write_bytes_atomic(path, buffer.getvalue())

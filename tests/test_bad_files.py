@@ -435,7 +435,7 @@ def test_file_size_limit_leaves_the_old_bench_report_intact(tmp_path):
     out = tmp_path / "reports"
     (out / "accuracy_vs_time").mkdir(parents=True)
     (out / "accuracy_vs_time.md").write_text("# What accuracy costs in time\nold\n")
-    (out / "accuracy_vs_time" / "sys.png").write_bytes(b"\x89PNG old")
+    (out / "accuracy_vs_time" / "sys.png").write_bytes(b"\x89PNG old, tEXtSoftware\x00pinlin")
     before = snapshot(tmp_path)
     source = (
         "from pathlib import Path\n"
