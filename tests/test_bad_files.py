@@ -14,6 +14,7 @@ import json
 import os
 import resource
 import signal
+import stat
 import subprocess
 import sys
 import warnings
@@ -708,3 +709,45 @@ def test_export_keeps_a_hand_written_mjcf(capfd, tmp_path):
     code, _, err = cli(capfd, "export-mjcf", "double_pendulum", "-o", mine)
     assert_refused(code, err, "robot.xml", "pinlin does not replace it")
     assert snapshot(tmp_path) == before
+
+
+def _user_png(path: Path) -> None:
+    """A PNG of the user's own, made by matplotlib as pinlin's are (but not by pinlin)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure()
+    fig.savefig(path, format="png")
+    plt.close(fig)
+
+
+@pytest.mark.parametrize("kind", ["png", "gif", "html", "csv", "fifo"])
+def test_files_of_the_same_format_or_no_file_at_all_are_kept(kind, capfd, tmp_path):
+    """A user's matplotlib plot, GIF, HTML page or lab CSV (header 't,voltage') at an output
+    name is kept (pinlin's own carry its marker or named signals), and so is a named pipe."""
+    pendulum = URDF_DIR / "pendulum.toml"
+    target = tmp_path / f"mine.{'csv' if kind == 'fifo' else kind}"
+    if kind == "png":
+        _user_png(target)
+        argv = ["modes", pendulum, "--plot", target]
+    elif kind == "gif":
+        target.write_bytes(b"GIF89a" + bytes(40))
+        argv = ["modes", pendulum, "--gif", target]
+    elif kind == "html":
+        target.write_text("<!DOCTYPE html>\n<title>my notes</title>\n")
+        argv = ["report", pendulum, "-o", target, "--no-response"]
+    elif kind == "csv":
+        target.write_text("t,voltage\n0,1.5\n")
+        argv = ["simulate", pendulum, "--t-end", "0.05", "--out", target]
+    else:
+        os.mkfifo(target)
+        argv = ["simulate", pendulum, "--t-end", "0.05", "--out", target]
+    before = snapshot(tmp_path) if kind != "fifo" else None
+    code, _, err = cli(capfd, *argv)
+    assert_refused(code, err, target.name, "pinlin does not replace it")
+    if before is not None:
+        assert snapshot(tmp_path) == before
+    else:
+        assert stat.S_ISFIFO(os.stat(target).st_mode)
