@@ -161,12 +161,12 @@ def check_options(system: System, derivatives: object,
     if not isinstance(second_order, bool | np.bool_):
         raise ArgumentError("second_order", f"expected True or False, got {second_order!r}")
     if second_order and system.constraints:
-        raise ArgumentError("second_order", f"scene '{system.scene.name}' is a mechanism "
-                                            "(loops or mimic couplings): pinlin.linearize at "
-                                            "a moving state of a mechanism gives no M, "
-                                            "C_damp, K, Bu, so its trajectory has none; leave "
-                                            "second_order out (A, B are in its independent "
-                                            "coordinates)")
+        raise ArgumentError("second_order", f"scene '{system.scene.name}' has constraints "
+                                            "(loops, contacts or mimic couplings): "
+                                            "pinlin.linearize at a given state of a "
+                                            "constrained system gives no M, C_damp, K, Bu, so "
+                                            "its trajectory has none; leave second_order out "
+                                            "(A, B are in its independent coordinates)")
     return n_workers, n_chunk, bool(second_order)
 
 

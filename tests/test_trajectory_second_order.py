@@ -149,7 +149,8 @@ def test_mechanisms_refuse_second_order():
     Q, V, U, _ = sweep(scene, 3, seed=37)
     single = pinlin.linearize(scene, q=Q[0], v=V[0], u=U[0])
     assert single.M is None and single.K is None
-    with pytest.raises(pinlin.ArgumentError, match="second_order.*mechanism.*gives no M") as exc:
+    with pytest.raises(pinlin.ArgumentError,
+                       match="second_order.*has constraints.*gives no M") as exc:
         pinlin.linearize_trajectory(scene, Q, V, U, second_order=True)
     assert exc.value.argument == "second_order"
     with pytest.raises(pinlin.ArgumentError, match="expected True or False"):
@@ -192,5 +193,5 @@ def test_cli_second_order(tmp_path, capfd):
     np.savez(tmp_path / "loops.npz", q=Q, v=V, u=U)
     assert main(["trajectory", str(URDF_DIR / "four_bar.toml"), str(tmp_path / "loops.npz"),
                  "--out", str(out), "--second-order"]) != 0
-    assert "argument '--second-order': scene 'four_bar' is a mechanism" in \
+    assert "argument '--second-order': scene 'four_bar' has constraints" in \
         capfd.readouterr().err
