@@ -283,19 +283,24 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     minv_diag = np.empty((min(BLOCK, hi - lo), system.nv))
     bound = diagonal_bound(system, Q)
     limit = system._refuse_limit
-    kernel = _fill_second_order if options.second_order else _fill_batch
     for start in range(lo, hi, BLOCK):  # blocks small enough to screen while in cache
         stop = min(hi, start + BLOCK)
-        kernel(system, arrays, start, stop, plan, tau[start - lo:stop - lo], minv_diag)
+        _fill_batch(system, arrays, start, stop, plan, tau[start - lo:stop - lo], minv_diag,
+                    options.second_order)
         if system.outputs is not None:
             _fill_outputs(system, arrays, start, stop)
         _screen(system, arrays, start, stop, suspect(bound, minv_diag[:stop - start], limit))
 
 
 def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
-                plan: _Plan, tau: np.ndarray, minv_diag: np.ndarray) -> None:
+                plan: _Plan, tau: np.ndarray, minv_diag: np.ndarray,
+                second_order: bool = False) -> None:
     """The lower block rows of A and B and the acceleration of points lo:hi, whose
-    generalized forces are ``tau`` (M^-1's diagonals into ``minv_diag``)."""
+    generalized forces are ``tau`` (M^-1's diagonals into ``minv_diag``); with
+    ``second_order``, also M, C_damp and K (module docstring): the RNEA derivatives the ABA
+    derivatives leave in ``data.dtau_dq``/``data.dtau_dv``, and M from ``pin.crba`` (its upper
+    triangle, mirrored), as
+    :func:`pinlin.linearize` forms them."""
     model, data, nv = system.model, system.data, system.nv
     Q, V = arrays["q"], arrays["v"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
@@ -306,7 +311,7 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
     derivatives = pin.computeABADerivatives
     ddq = data.ddq  # a view of Pinocchio's own vector, rewritten by every call
     dg = minv_diag[:hi - lo]
-    if not ks.size and not cs.size:
+    if not ks.size and not cs.size and not second_order:
         for k in range(lo, hi):
             dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
             Aq[k] = dq
@@ -315,6 +320,8 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
             acc[k] = ddq
             dg[k - lo] = Minv.diagonal()
         return
+    if second_order:
+        M, C, K = arrays["M"], arrays["C_damp"], arrays["K"]
     for k in range(lo, hi):  # springs and damping: d tau / d(dq, v) through M^-1
         dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
         Aq[k] = dq
@@ -326,38 +333,12 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
         Bv[k] = Minv[:, cols]
         acc[k] = ddq
         dg[k - lo] = Minv.diagonal()
-
-
-def _fill_second_order(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
-                       plan: _Plan, tau: np.ndarray, minv_diag: np.ndarray) -> None:
-    """:func:`_fill_batch` plus M, C_damp and K of points lo:hi (module docstring): the RNEA
-    derivatives the ABA derivatives leave in ``data.dtau_dq``/``data.dtau_dv``, and M from
-    ``pin.crba`` (its upper triangle, mirrored), as :func:`pinlin.linearize` forms them."""
-    model, data, nv = system.model, system.data, system.nv
-    Q, V = arrays["q"], arrays["v"]
-    A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
-    M, C, K = arrays["M"], arrays["C_damp"], arrays["K"]
-    Aq, Av, Bv, acc = A[:, nv:, :nv], A[:, nv:, nv:], B[:, nv:], f0[:, nv:]
-    cols = system.actuated_columns
-    ks, cs = plan.spring_cols, plan.damping_cols
-    stiffness, damping = system.stiffness[ks], system.damping[cs]
-    derivatives, crba = pin.computeABADerivatives, pin.crba
-    ddq = data.ddq
-    dg = minv_diag[:hi - lo]
-    for k in range(lo, hi):
-        dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
-        Aq[k] = dq
-        Av[k] = dv
-        if ks.size:
-            Aq[k][:, ks] -= Minv[:, ks] * stiffness
-        if cs.size:
-            Av[k][:, cs] -= Minv[:, cs] * damping
-        Bv[k] = Minv[:, cols]
-        acc[k] = ddq
-        dg[k - lo] = Minv.diagonal()
-        K[k] = data.dtau_dq  # d rnea / dq at (q, v, ddq): dq = -M^-1 dtau_dq
-        C[k] = data.dtau_dv
-        M[k] = crba(model, data, Q[k])  # after the copies: the same workspace
+        if second_order:
+            K[k] = data.dtau_dq  # d rnea / dq at (q, v, ddq): dq = -M^-1 dtau_dq
+            C[k] = data.dtau_dv
+            M[k] = pin.crba(model, data, Q[k])  # after the copies: the same workspace
+    if not second_order:
+        return
     lower = np.tril_indices(nv, -1)  # Pinocchio 4 fills both triangles, older ones the upper
     Mb = M[lo:hi]
     Mb[:, lower[0], lower[1]] = Mb[:, lower[1], lower[0]]
