@@ -35,6 +35,21 @@ from .exceptions import ArgumentError, ModelError
 METHODS = ("zoh", "euler")
 
 
+def check_step(dt: object, method: object) -> float:
+    """``dt`` [s] as a float, and ``method`` one of :data:`METHODS`.
+
+    Raises:
+        ArgumentError: ``dt`` not a positive finite number [s], or an unknown method.
+    """
+    if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
+            or not (math.isfinite(dt) and dt > 0):
+        raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r}")
+    if not isinstance(method, str) or method not in METHODS:
+        raise ArgumentError("method", f"expected one of {', '.join(map(repr, METHODS))}, got "
+                                      f"{method!r}")
+    return float(dt)
+
+
 def discretize(model, dt: float, method: str = "zoh"):
     """The discrete model of ``model`` (a continuous :class:`~pinlin.LinearModel`) over ``dt``
     [s] by ``method`` (see the module docstring).
@@ -46,12 +61,7 @@ def discretize(model, dt: float, method: str = "zoh"):
     """
     from .linear_model import LinearModel
 
-    if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
-            or not (math.isfinite(dt) and dt > 0):
-        raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r}")
-    if not isinstance(method, str) or method not in METHODS:
-        raise ArgumentError("method", f"expected one of {', '.join(map(repr, METHODS))}, got "
-                                      f"{method!r}")
+    dt = check_step(dt, method)
     if model.dt:
         raise ArgumentError("model", f"model '{model.name}' is already discrete (dt = "
                                      f"{model.dt:g} s)")

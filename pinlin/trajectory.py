@@ -32,17 +32,17 @@ from .batch import Layout, Options, batch_path, check, constant_outputs, fill
 from .derivatives import resolve_steps
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .linear_model import LinearModel
+from .linearization import _system
 from .operating_point import OperatingPoint
 from .resources import check_memory
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
-from .trajectory_inputs import check_normalized, check_options, points, system_of, times
+from .trajectory_inputs import check_normalized, check_options, points, times
 
 #: Points per progress report (and per vectorized block) when one process does the work.
 SERIAL_BLOCK = 256
 #: Points per block of the vectorized zero-order hold (bounds its temporary memory).
 ZOH_BLOCK = 128
-_METHODS = ("zoh", "euler")
 _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 
 
@@ -219,16 +219,12 @@ class TrajectoryModel:
             ArgumentError: ``dt`` not a positive finite number [s], an unknown method, or
                 models that are already discrete.
         """
-        if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
-                or not (math.isfinite(dt) and dt > 0):
-            raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r}")
-        if not isinstance(method, str) or method not in _METHODS:
-            raise ArgumentError("method", f"expected one of {', '.join(map(repr, _METHODS))}, "
-                                          f"got {method!r}")
+        from .discretization import check_step
+
+        dt = check_step(dt, method)
         if self.dt:
             raise ArgumentError("model", f"trajectory model '{self.name}' is already discrete "
                                          f"(dt = {self.dt:g} s)")
-        dt = float(dt)
         A_d, B_d, f_d = (_zoh if method == "zoh" else _euler)(self.A, self.B, self.f0, dt)
         for arr in (A_d, B_d, f_d):
             arr.setflags(write=False)
@@ -390,7 +386,7 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
         ResourceError: the stacked models would exceed the memory limit
             (:func:`pinlin.set_memory_limit`).
     """
-    system = system_of(scene)
+    system = _system(scene)
     workers, chunk, second_order = check_options(system, derivatives, step, workers, chunk,
                                                 executor, progress, second_order)
     nu = len(system.actuated)

@@ -6,32 +6,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
-from os import PathLike
 
 import numpy as np
 import pinocchio as pin
 
 from .derivatives import BACKENDS, resolve_steps
 from .exceptions import ArgumentError, ShapeError
-from .scene import Scene
 from .system import System
 
 #: A configuration's unit-norm parts (quaternions, (cos, sin) pairs) may be off by this.
 NORM_TOLERANCE = 1e-6
-
-
-def system_of(scene: object) -> System:
-    """The system of a Scene, a System, or a scene file / URDF / bundled scene / robot name
-    (as :func:`pinlin.linearize` accepts)."""
-    if isinstance(scene, System):
-        return scene
-    if isinstance(scene, Scene):
-        return scene.system
-    if isinstance(scene, str | PathLike):
-        return Scene.resolve(scene).system
-    raise ArgumentError("scene", "expected a pinlin.Scene, a pinlin.System, or a scene file, "
-                                 "URDF, bundled scene or robot name (str or path), got "
-                                 f"{type(scene).__name__}")
 
 
 def points(name: str, value: object, width: int, what: str, points: int | None,
@@ -171,4 +155,4 @@ def check_options(system: System, derivatives: object,
 
 
 __all__ = ["NORM_TOLERANCE", "check_normalized", "check_options", "points", "positive_int",
-           "system_of", "times"]
+           "times"]
