@@ -10,7 +10,6 @@ only, library users keep Python's usual warnings.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -20,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .cli_format import (
+    check_out,
     file_name,
     folder_name,
     format_matrix,
@@ -92,20 +92,6 @@ def _show_warning(message: Warning | str, category: type[Warning], filename: str
     print(f"warning: {text}", file=sys.stderr)
 
 
-def _check_out(path: Path) -> None:
-    """Refuse an --out path before any work, so that a failure writes nothing: unknown
-    format, a folder, a folder that does not exist or is a file, no permission."""
-    from .files import check_file_target
-
-    if path.suffix not in (".npz", ".mat", ".json"):
-        raise ModelFileError(path, f"unknown model format '{path.suffix}'; expected .npz, .mat "
-                                   "or .json")
-    check_file_target(path)
-    parent = path.parent if str(path.parent) else Path(".")
-    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise ModelFileError(path, "cannot write: permission denied")
-
-
 def _cmd_linearize(args: argparse.Namespace) -> int:
     from .linear_model import LinearModel  # noqa: F401  (import cost paid before the work)
     from .linearization import linearize
@@ -114,7 +100,7 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else None
     if out is not None:
-        _check_out(out)
+        check_out(out, (".npz", ".mat", ".json"))
     scene = Scene.resolve(args.target)
     model = linearize(scene, formulation=args.formulation, derivatives=args.derivatives,
                       step=args.step,

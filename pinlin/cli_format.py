@@ -3,7 +3,9 @@ column names, operating points, poles, plurals (the parsing itself is in :mod:`p
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -38,6 +40,23 @@ def folder_name(value: str, option: str) -> str:
     if not value.strip():
         raise ArgumentError(option, "needs a folder name, got an empty string")
     return value
+
+
+def check_out(path: Path, formats: Sequence[str], kind: str = "model") -> None:
+    """Refuse an --out path before any work, so that a failure writes nothing: a format not in
+    ``formats`` (suffixes), a folder, a folder that does not exist or is a file, no
+    permission."""
+    from .exceptions import ModelFileError
+    from .files import check_file_target
+
+    if path.suffix not in formats:
+        names = list(formats)
+        listed = ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else names[0]
+        raise ModelFileError(path, f"unknown {kind} format '{path.suffix}'; expected {listed}")
+    check_file_target(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise ModelFileError(path, "cannot write: permission denied")
 
 
 def _fmt(values: np.ndarray) -> str:

@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import argparse
 import io
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from .cli_format import file_name, folder_name, plural
+from .cli_format import check_out, file_name, folder_name, plural
 from .exceptions import ArgumentError, ModelFileError
 
 #: The trajectory progress bar appears once a run has taken this long [s].
@@ -81,19 +80,12 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
     import time
 
     from .exceptions import ShapeError
-    from .files import check_file_target
     from .scene import Scene
     from .trajectory import linearize_trajectory
     from .trajectory_files import MODEL_FORMATS, read_states
 
     out = Path(args.out)
-    if out.suffix not in MODEL_FORMATS:
-        raise ModelFileError(out, f"unknown trajectory model format '{out.suffix}'; expected "
-                                  ".npz or .mat")
-    check_file_target(out)
-    parent = out.parent if str(out.parent) else Path(".")
-    if not os.access(parent, os.W_OK) or (out.exists() and not os.access(out, os.W_OK)):
-        raise ModelFileError(out, "cannot write: permission denied")
+    check_out(out, MODEL_FORMATS, "trajectory model")
     if args.workers < 1:
         raise ArgumentError("--workers", f"expected a number of processes >= 1, got "
                                          f"{args.workers}")
