@@ -86,7 +86,7 @@ class OpenChain:
         system, nv = self.system, self.nv
         dq, v = s[:nv], s[nv:]
         q = pin.integrate(self.model, self.q_ref, dq)
-        tau = applied(system, q, v, u)
+        tau = system.applied_force(q, v, u)
         if system.rotation is None:
             a = pin.aba(self.model, system.data, q, v, tau)
         else:
@@ -209,7 +209,7 @@ class Mechanism:
         q, G, R = self._configure(s)
         zdot = s[self.z.size:]
         v = R @ zdot
-        rhs = np.concatenate([applied(system, q, v, u) - system.rnea(q, v, np.zeros(nv)),
+        rhs = np.concatenate([system.applied_force(q, v, u) - system.rnea(q, v, np.zeros(nv)),
                               -self.cons.bias_acceleration(q, v)[self.rows]])
         kkt = self._kkt
         kkt[:nv, :nv] = system.mass_matrix(q)
@@ -246,14 +246,4 @@ class Mechanism:
                 float(np.abs(self.cons.jacobian(q) @ v).max()))
 
 
-def applied(system: System, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """S u + tau_spring(q) - D v [N*m or N]."""
-    tau = system.input_matrix @ u
-    if system.has_springs:
-        tau = tau + system.spring_torque(q)
-    if system.has_damping:
-        tau = tau - system.damping * v
-    return tau
-
-
-__all__ = ["CHART_LIMIT", "Mechanism", "OpenChain", "applied"]
+__all__ = ["CHART_LIMIT", "Mechanism", "OpenChain"]

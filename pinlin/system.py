@@ -381,6 +381,16 @@ class System:
 
         raise_singular(self, q, liftable)
 
+    def applied_force(self, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """S u + tau_spring(q) - D v: the generalized force of the inputs, springs and
+        damping at (q, v, u) [N*m or N]."""
+        tau = self.input_matrix @ u
+        if self.has_springs:
+            tau = tau + self.spring_torque(q)
+        if self.has_damping:
+            tau = tau - self.damping * v
+        return tau
+
     def spring_torque(self, q: np.ndarray) -> np.ndarray:
         """Generalized spring force at configuration ``q`` [N*m or N]."""
         if not self.has_springs:

@@ -105,7 +105,7 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
         lam = np.zeros(cons.size)
         lam[part.rows] = lam_k
         M0 = system.mass_matrix(q0)
-    tau = _applied(system, q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
+    tau = system.applied_force(q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
     tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
     zn = ", ".join(system.coordinate_names[i] for i in part.independent)
     notes = [f"state given (solve = \"none\"), loops closed: independent coordinates {zn}; "
@@ -118,16 +118,6 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
                         equilibrium=False, tolerance=tol, lam=lam, notes=tuple(notes),
                         lam_names=cons.row_names)
     return op, ConstrainedPoint(part, G)
-
-
-def _applied(system, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """S u + springs - damping [N*m or N]."""
-    tau = system.input_matrix @ u
-    if system.has_springs:
-        tau = tau + system.spring_torque(q)
-    if system.has_damping:
-        tau = tau - system.damping * v
-    return tau
 
 
 def _kkt(M: np.ndarray, G: np.ndarray) -> np.ndarray:
@@ -145,7 +135,7 @@ def _constrained_dynamics(system, q, v, u, G, part) -> tuple[np.ndarray, np.ndar
     """(a, lam_k) with M a - G^T lam = tau - b, G a = -gamma."""
     nv = system.nv
     M = system.mass_matrix(q)
-    rhs = np.concatenate([_applied(system, q, v, u) - system.rnea(q, v, np.zeros(nv)),
+    rhs = np.concatenate([system.applied_force(q, v, u) - system.rnea(q, v, np.zeros(nv)),
                           -system.constraints.bias_acceleration(q, v)[part.rows]])
     sol = np.linalg.solve(_kkt(M, G), rhs)
     return sol[:nv], sol[nv:]
@@ -249,7 +239,7 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
     rows = part.rows
     nv, m = system.nv, len(rows)
     M = system.mass_matrix(op.q)
-    rhs = np.concatenate([_applied(system, op.q, op.v, op.u)
+    rhs = np.concatenate([system.applied_force(op.q, op.v, op.u)
                           - system.rnea(op.q, op.v, np.zeros(nv)),
                           -cons.bias_acceleration(op.q, op.v)[rows]])
     kkt = np.block([[M, -G.T], [G, np.eye(m) / alpha]])
