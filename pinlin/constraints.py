@@ -305,11 +305,16 @@ class ConstraintSet:
         else:
             phi = np.zeros(self.size)
         self._mimic_residual(q, phi)
+        self._mimic_jacobian(out)
+        return phi, out
+
+    def _mimic_jacobian(self, out: np.ndarray) -> None:
+        """Add the mimic rows' constant Jacobian (q_m - multiplier q_j) into ``out``'s last
+        rows."""
         first = self.size - len(self._mimic_rows)
         for k, (iv_m, iv_j, mult, _, _, _) in enumerate(self._mimic_rows):
             out[first + k, iv_m] += 1.0
             out[first + k, iv_j] -= mult
-        return phi, out
 
     def _point_residual_and_jacobian(self, q: np.ndarray, plan: tuple
                                      ) -> tuple[np.ndarray, np.ndarray]:
@@ -330,10 +335,7 @@ class ConstraintSet:
         jac = P @ J
         if self._mimic_rows:
             self._mimic_residual(q, phi)
-            first = self.size - len(self._mimic_rows)
-            for k, (iv_m, iv_j, mult, _, _, _) in enumerate(self._mimic_rows):
-                jac[first + k, iv_m] += 1.0
-                jac[first + k, iv_j] -= mult
+            self._mimic_jacobian(jac)
         return phi, jac
 
     @functools.cached_property
