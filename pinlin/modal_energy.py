@@ -167,17 +167,7 @@ def _bodies(model: LinearModel, scene: Scene, phi: np.ndarray
     if op is None or np.shape(op.q) != (pm.nq,):
         raise ModelError(f"scene '{scene.name}' does not match model '{model.name}': the model "
                          f"has no operating point with {pm.nq} configuration values")
-    coords = [s[2:] for s in model.state_names[:phi.shape[0]]]
-    if "R" in model.info:
-        R = np.asarray(model.info["R"], dtype=float)
-    elif coords == list(system.coordinate_names):
-        R = np.eye(pm.nv)
-    else:
-        R = None
-    if R is None or R.shape != (pm.nv, phi.shape[0]):
-        raise ModelError(f"scene '{scene.name}' does not match model '{model.name}': its "
-                         f"coordinates are not the model's ({', '.join(coords[:4])}...)")
-    v = R @ phi                                     # velocity shapes, all coordinates
+    v = _shape_matrix(model, scene, phi.shape[0]) @ phi   # velocity shapes, all coordinates
     data = pm.createData()                          # a workspace of our own (thread safety)
     pin.computeJointJacobians(pm, data, np.asarray(op.q, dtype=float))
     energies, names = [], []
