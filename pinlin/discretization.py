@@ -113,4 +113,45 @@ def _semi_implicit_euler(model, dt: float, f0: np.ndarray
     return A_d, B_d, f_d
 
 
-__all__ = ["METHODS", "discretize"]
+
+
+#: Points per block of the stacked zero-order hold (bounds its temporary memory).
+ZOH_BLOCK = 128
+
+
+def stacked_zoh(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Van Loan's augmented exponential, expm([[A, B, f0], [0, 0, 0]] dt), for stacks of
+    models (points first), in blocks of :data:`ZOH_BLOCK` points."""
+    N, n, m = B.shape
+    A_d, B_d, f_d = np.empty_like(A), np.empty_like(B), np.empty_like(f0)
+    for lo in range(0, N, ZOH_BLOCK):
+        hi = min(N, lo + ZOH_BLOCK)
+        aug = np.zeros((hi - lo, n + m + 1, n + m + 1))
+        aug[:, :n, :n] = A[lo:hi]
+        aug[:, :n, n:n + m] = B[lo:hi]
+        aug[:, :n, -1] = f0[lo:hi]
+        phi = sla.expm(aug * dt)
+        A_d[lo:hi], B_d[lo:hi], f_d[lo:hi] = phi[:, :n, :n], phi[:, :n, n:n + m], phi[:, :n, -1]
+    return A_d, B_d, f_d
+
+
+def stacked_euler(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The semi-implicit Euler map of :func:`discretize`, for stacks of models (points first)."""
+    nv = A.shape[1] // 2
+    Aqq, Aqv, Avq, Avv = A[:, :nv, :nv], A[:, :nv, nv:], A[:, nv:, :nv], A[:, nv:, nv:]
+    Bv = B[:, nv:]
+    eye = np.eye(nv)
+    A_d = np.empty_like(A)
+    A_d[:, :nv, :nv] = eye + dt * Aqq + dt * dt * (Aqv @ Avq)
+    A_d[:, :nv, nv:] = dt * (Aqv @ (eye + dt * Avv))
+    A_d[:, nv:, :nv] = dt * Avq
+    A_d[:, nv:, nv:] = eye + dt * Avv
+    B_d = np.concatenate([dt * dt * (Aqv @ Bv), dt * Bv], axis=1)
+    f_d = np.concatenate([dt * f0[:, :nv] + dt * dt * (Aqv @ f0[:, nv:, None])[..., 0],
+                          dt * f0[:, nv:]], axis=1)
+    return A_d, B_d, f_d
+
+
+__all__ = ["METHODS", "ZOH_BLOCK", "discretize", "stacked_euler", "stacked_zoh"]

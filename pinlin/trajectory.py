@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
 from . import trajectory_loops as loops
 from .batch import Layout, Options, batch_path, check, constant_outputs, fill
@@ -35,14 +34,13 @@ from .linear_model import LinearModel
 from .linearization import _system
 from .operating_point import OperatingPoint
 from .resources import check_memory
+from .rest_schedule import holding_inputs, rest_info, rest_options
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
 from .trajectory_inputs import check_normalized, check_options, points, times
 
 #: Points per progress report (and per vectorized block) when one process does the work.
 SERIAL_BLOCK = 256
-#: Points per block of the vectorized zero-order hold (bounds its temporary memory).
-ZOH_BLOCK = 128
 _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 
 
@@ -165,7 +163,8 @@ class TrajectoryModel:
 
     def at(self, k: int) -> LinearModel:
         """The model of point ``k`` (negative: from the end) as a :class:`LinearModel`: what
-        :func:`pinlin.linearize` gives at (q[k], v[k], u[k]), to rounding, with the
+        :func:`pinlin.linearize` gives at (q[k], v[k], u[k]) (a schedule of rest points:
+        at q[k], an equilibrium, its f0 None), to rounding, with the
         second-order matrices M, C_damp, K, Bu where the trajectory has them
         (``second_order=True``), else None. Its operating point carries q, v, u, a and y;
         its ``residual`` (M a0) is None.
@@ -182,8 +181,13 @@ class TrajectoryModel:
                                      f"down to -{N}), got {k}")
         k = int(k) % N
         q, v, u, a = self.q[k], self.v[k], self.u[k], self.a[k]
-        moving = bool(v.any() or a.any()) or self.lam is not None
+        rest = bool(self.info.get("at_rest"))  # a schedule of rest points (rest_schedule)
+        moving = bool(v.any() or a.any()) or (self.lam is not None and not rest)
         when = f" (t = {self.t[k]:.6g} s)" if self.t is not None else ""
+        note = (f"point {k} of {N} of a schedule of rest points{when}: the inputs that hold q "
+                "were solved; the residual is not kept in a batch" if rest else
+                f"point {k} of {N} of a trajectory{when}: the state is given; the residual "
+                "M a0 is not computed in a batch (a0 is operating_point.a)")
         info = {**self.info, "point": k}
         loop_info = info.pop("loops", None)
         if loop_info is not None:  # a mechanism: its point's diagnostics, as linearize's
@@ -195,8 +199,7 @@ class TrajectoryModel:
             y=None if self.y is None else self.y[k],
             lam=None if self.lam is None else self.lam[k],
             lam_names=tuple(self.info.get("lam_names", ())) if self.lam is not None else (),
-            notes=(f"point {k} of {N} of a trajectory{when}: the state is given; the "
-                   "residual M a0 is not computed in a batch (a0 is operating_point.a)",))
+            notes=(note,))
         if self.t is not None:
             info["t"] = float(self.t[k])
         return LinearModel.assembled(
@@ -219,13 +222,14 @@ class TrajectoryModel:
             ArgumentError: ``dt`` not a positive finite number [s], an unknown method, or
                 models that are already discrete.
         """
-        from .discretization import check_step
+        from .discretization import check_step, stacked_euler, stacked_zoh
 
         dt = check_step(dt, method)
         if self.dt:
             raise ArgumentError("model", f"trajectory model '{self.name}' is already discrete "
                                          f"(dt = {self.dt:g} s)")
-        A_d, B_d, f_d = (_zoh if method == "zoh" else _euler)(self.A, self.B, self.f0, dt)
+        A_d, B_d, f_d = (stacked_zoh if method == "zoh" else stacked_euler)(self.A, self.B,
+                                                                            self.f0, dt)
         for arr in (A_d, B_d, f_d):
             arr.setflags(write=False)
         return TrajectoryModel.trusted(**{
@@ -284,51 +288,19 @@ def _shape_text(shape: tuple[int, ...]) -> str:
     return "(" + ", ".join("?" if s < 0 else str(s) for s in shape) + ")"
 
 
-def _zoh(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
-         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Van Loan's augmented exponential, expm([[A, B, f0], [0, 0, 0]] dt), per point."""
-    N, n, m = B.shape
-    A_d, B_d, f_d = np.empty_like(A), np.empty_like(B), np.empty_like(f0)
-    for lo in range(0, N, ZOH_BLOCK):
-        hi = min(N, lo + ZOH_BLOCK)
-        aug = np.zeros((hi - lo, n + m + 1, n + m + 1))
-        aug[:, :n, :n] = A[lo:hi]
-        aug[:, :n, n:n + m] = B[lo:hi]
-        aug[:, :n, -1] = f0[lo:hi]
-        phi = sla.expm(aug * dt)
-        A_d[lo:hi], B_d[lo:hi], f_d[lo:hi] = phi[:, :n, :n], phi[:, :n, n:n + m], phi[:, :n, -1]
-    return A_d, B_d, f_d
-
-
-def _euler(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The semi-implicit Euler map of :mod:`pinlin.discretization`, for stacks."""
-    nv = A.shape[1] // 2
-    Aqq, Aqv, Avq, Avv = A[:, :nv, :nv], A[:, :nv, nv:], A[:, nv:, :nv], A[:, nv:, nv:]
-    Bv = B[:, nv:]
-    eye = np.eye(nv)
-    A_d = np.empty_like(A)
-    A_d[:, :nv, :nv] = eye + dt * Aqq + dt * dt * (Aqv @ Avq)
-    A_d[:, :nv, nv:] = dt * (Aqv @ (eye + dt * Avv))
-    A_d[:, nv:, :nv] = dt * Avq
-    A_d[:, nv:, nv:] = eye + dt * Avv
-    B_d = np.concatenate([dt * dt * (Aqv @ Bv), dt * Bv], axis=1)
-    f_d = np.concatenate([dt * f0[:, :nv] + dt * dt * (Aqv @ f0[:, nv:, None])[..., 0],
-                          dt * f0[:, nv:]], axis=1)
-    return A_d, B_d, f_d
-
-
 # --------------------------------------------------------------------------------------------
 # linearize_trajectory
 
 
-def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: np.ndarray,
-                         u: np.ndarray, t: np.ndarray | None = None, *, workers: int = 1,
+def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
+                         v: np.ndarray | None = None, u: np.ndarray | None = None,
+                         t: np.ndarray | None = None, *, workers: int = 1,
                          executor: Executor | None = None, derivatives: str = "analytic",
                          chunk: int | None = None,
                          step: float | Mapping[str, float] | None = None,
                          progress: Callable[[int, int], None] | None = None,
-                         second_order: bool = False) -> TrajectoryModel:
+                         second_order: bool = False,
+                         allow_non_equilibrium: bool | None = None) -> TrajectoryModel:
     """Linear models of a scene at N states, stacked (see :class:`TrajectoryModel`).
 
     Point k is the model :func:`pinlin.linearize` gives at ``q=q[k], v=v[k], u=u[k]``
@@ -344,12 +316,20 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
     assembled configuration) whenever that call chooses the same coordinates (always when
     the scene names them).
 
+    Without ``v`` and ``u`` the points are a *gain schedule* of rest points: point k is the
+    model :func:`pinlin.linearize` gives at ``q=q[k]`` (``solve = "inputs"``: at rest, the
+    holding inputs u0 and constraint forces solved at every point; a mechanism's at its
+    assembled configuration), to rounding; ``model.u`` holds those inputs, ``model.a`` is
+    zero at every equilibrium (:mod:`pinlin.rest_schedule`). A mechanism is assembled from
+    point to point, so the schedule stays on the assembly branch of its first point.
+
     Args:
         scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
             robot name.
         q: (N, nq) configurations (normalized quaternions and (cos, sin) pairs) [m, rad].
-        v: (N, nv) velocities [rad/s or m/s].
-        u: (N, nu) inputs [N*m or N], in the order of the model's ``input_names``.
+        v: (N, nv) velocities [rad/s or m/s]; None (with ``u``): a schedule of rest points.
+        u: (N, nu) inputs [N*m or N], in the order of the model's ``input_names``; None (with
+            ``v``): solved at every point (a schedule of rest points).
         t: (N,) times [s], strictly increasing, kept with the models; or None.
         workers: Processes sharing the work on this machine (>= 1); they write into shared
             memory (:mod:`pinlin.parallel`). Where other threads run, the pool is started by
@@ -371,12 +351,18 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
             (open chains; on the batch path one ``pin.crba`` more per point,
             :mod:`pinlin.batch`). Mechanisms refuse it: a single model at a moving state of a
             mechanism has none.
+        allow_non_equilibrium: A schedule of rest points only: accept open-chain points that
+            the inputs cannot hold (their models describe the motion about (q, v = 0)); None:
+            the scene's ``operating_point.allow_non_equilibrium``.
 
     Raises:
         ShapeError: an array of the wrong shape (the message names the argument).
         ArgumentError: NaN, inf or out-of-range entries, configurations that are not
             normalized (naming the argument and the first bad row), or a bad option
-            (``second_order=True`` on a mechanism).
+            (``second_order=True`` on a mechanism; v without u or u without v; a schedule of
+            rest points of a scene whose ``solve`` is not ``"inputs"``).
+        EquilibriumError: a point of a schedule of rest points that the inputs (and a
+            mechanism's constraint forces) cannot hold, naming it.
         ModelError: a point where the model cannot be built (a singular mass matrix; for a
             mechanism, a point where the independent coordinates of point 0 cannot
             parametrize it), naming the first such point; a mechanism with what
@@ -390,10 +376,13 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
     workers, chunk, second_order = check_options(system, derivatives, step, workers, chunk,
                                                 executor, progress, second_order)
     nu = len(system.actuated)
+    allow = rest_options(system, v, u, allow_non_equilibrium)
     Q = points("q", q, system.nq, "configurations", None, POSITION_LIMIT)
     N = Q.shape[0]
-    V = points("v", v, system.nv, "velocities", N, COEFFICIENT_LIMIT)
-    U = points("u", u, nu, "inputs", N, COEFFICIENT_LIMIT)
+    rest = allow is not None  # a schedule of rest points: v = 0, u solved (rest_schedule)
+    V = np.zeros((N, system.nv)) if rest else points("v", v, system.nv, "velocities", N,
+                                                     COEFFICIENT_LIMIT)
+    U = np.zeros((N, nu)) if rest else points("u", u, nu, "inputs", N, COEFFICIENT_LIMIT)
     check_normalized(system, Q)
     T = times(t, N)
 
@@ -406,6 +395,8 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
         inputs["q"], frozen, inputs["cond"], moved = loops.close_loops(
             system, Q, None if progress is None else loops.first_pass(progress, N))
         progress = None if progress is None else loops.second_pass(progress, N)
+    if rest:
+        inputs["u"], at_rest, family = holding_inputs(system, inputs["q"], bool(allow))
     options = Options(derivatives, step, frozen, second_order)
     layout = Layout.of(system, N, None if frozen is None else len(frozen.independent),
                        second_order)
@@ -427,9 +418,15 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray, v: n
             if progress is not None:
                 progress(hi, N)
     check(system, arrays)
-    if frozen is not None:
-        return _assemble_loops(system, arrays, layout, T, frozen, moved)
-    return _assemble(system, arrays, layout, T, options)
+    if rest:  # a0 = 0 at an equilibrium, as a single call reports it (not rounding noise)
+        arrays["f0"][at_rest] = 0.0
+        if frozen is not None:
+            arrays["acc"][at_rest] = 0.0
+    model = (_assemble_loops(system, arrays, layout, T, frozen, moved) if frozen is not None
+             else _assemble(system, arrays, layout, T, options))
+    if rest:
+        model.info.update(rest_info(at_rest, family))
+    return model
 
 
 def _assemble(system: System, arrays: Mapping[str, np.ndarray], layout: Layout,

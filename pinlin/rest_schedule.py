@@ -1,0 +1,177 @@
+"""Gain schedules: the inputs that hold each of N configurations at rest.
+
+``pinlin.linearize_trajectory(scene, q)`` without velocities and inputs linearizes a
+*schedule* of static operating points, as a gain schedule over a grid of postures needs: point
+k is the model :func:`pinlin.linearize` gives at ``q=q[k]`` (the scene's ``solve =
+"inputs"``), the holding inputs solved at every point. This module solves them, for all points
+before any model is built, so that the stacked kernels of :mod:`pinlin.batch` and
+:mod:`pinlin.trajectory_loops` then linearize at the given states (q_k, 0, u0_k), which is the
+same model (at rest the acceleration vanishes and the velocity terms with it).
+
+At rest the residual form of the equations of motion is H = f(q) - S u - Phi_q^T lam = 0, with
+f the generalized gravity (and centrifugal force in a rotating scene) minus the springs:
+
+- **Open chain:** u0 = f on the actuated coordinates (S is a selection); what falls on the
+  unactuated ones is the residual, as :func:`pinlin.operating_point.hold_at_rest` computes it.
+  A point that is not an equilibrium (residual above 1e-9 max(1, |g|)) is refused, naming it,
+  unless the scene or the caller allows it; the model then describes the motion about
+  (q_k, v = 0) with a0 = -M^-1 residual, as for a single call.
+- **Mechanism** (at its assembled configurations, :mod:`pinlin.trajectory_loops`): the
+  least-norm [u0; lam] of [S, G^T] [u0; lam] = f over every constraint row that is not
+  identically zero there (:func:`pinlin.equilibrium.solve_constrained` takes the same rows: the
+  independent ones and the redundant ones that can carry a force). A residual left over is
+  refused: a mechanism off equilibrium cannot be linearized at rest.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .assembly import lstsq_rank
+from .batch import at_point
+from .exceptions import ArgumentError, EquilibriumError
+from .operating_point import residual_tolerance
+from .system import System
+
+
+def rest_options(system: System, v: object, u: object, allow: object) -> bool | None:
+    """Whether a schedule of rest points allows points off equilibrium (v and u both omitted:
+    the scene's ``allow_non_equilibrium`` unless ``allow`` is given), or None when the states
+    are given (v and u both passed).
+
+    Raises:
+        ArgumentError: one of v and u without the other, ``allow`` not a bool or given with
+            the states, or a scene whose ``operating_point.solve`` is not ``"inputs"``.
+    """
+    if (v is None) != (u is None):
+        missing = "u" if u is None else "v"
+        raise ArgumentError(missing, "give both v and u (states), or neither (a schedule of "
+                                     "rest points whose holding inputs are solved)")
+    if allow is not None and not isinstance(allow, bool | np.bool_):
+        raise ArgumentError("allow_non_equilibrium", f"expected True or False, got {allow!r}")
+    if v is not None:
+        if allow is not None:
+            raise ArgumentError("allow_non_equilibrium", "applies to a schedule of rest points "
+                                                         "(v and u omitted); the given states "
+                                                         "are linearized as they are")
+        return None
+    spec = system.scene.operating_point
+    if spec.solve != "inputs":
+        raise ArgumentError("v", f"scene '{system.scene.name}' has operating_point.solve = "
+                                 f"\"{spec.solve}\": a schedule of rest points (v and u "
+                                 "omitted) solves the holding inputs, as solve = \"inputs\" "
+                                 "does; give v and u to linearize at given states")
+    return bool(spec.allow_non_equilibrium if allow is None else allow)
+
+
+def rest_info(equilibrium: np.ndarray, family: list[int]) -> dict:
+    """The metadata a schedule adds to its model's ``info``: ``at_rest`` (True), the points
+    off equilibrium (opted in) and those whose inputs are a least-norm choice, with notes."""
+    info: dict = {"at_rest": True, "notes": []}
+    off = [int(k) for k in np.flatnonzero(~equilibrium)]
+    if off:
+        info["non_equilibrium_points"] = off
+        info["notes"].append(f"{len(off)} point(s) are not equilibria (opted in; the first is "
+                             f"point {off[0]}): their models describe the motion about "
+                             "(q, v = 0), a = -M^-1 residual")
+    if family:
+        info["least_norm_points"] = list(family)
+        info["notes"].append(f"at {len(family)} point(s) (the first is point {family[0]}) "
+                             "the inputs and constraint forces that hold q are not unique: "
+                             "the least-norm split is reported, as a single call reports it")
+    return info
+
+
+def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool
+                   ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The inputs that hold each configuration of ``Q`` (N, nq) at rest (module docstring).
+
+    Returns:
+        (U (N, nu) [N*m or N], equilibrium (N,) booleans, the points whose split of inputs and
+        constraint forces is not unique (redundant actuation or rows; the least-norm one is
+        taken, as a single call takes it)).
+
+    Raises:
+        EquilibriumError: the first point that is not an equilibrium (a mechanism's always; an
+            open chain's unless ``allow_non_equilibrium``), its message starting with
+            "trajectory point k: " and naming the coordinate and the residual.
+    """
+    if system.constraints:
+        return _mechanism(system, Q)
+    return _open_chain(system, Q, allow_non_equilibrium)
+
+
+def _held_force(system: System, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(gravity (N, nv), gravity minus springs (N, nv)) at every configuration [N*m or N]."""
+    N, nv = Q.shape[0], system.nv
+    gravity = np.empty((N, nv))
+    for k in range(N):
+        gravity[k] = system.static_force(Q[k])
+    if not system.has_springs:
+        return gravity, gravity
+    held = gravity.copy()
+    for k in range(N):
+        held[k] -= system.spring_torque(Q[k])
+    return gravity, held
+
+
+def _tolerances(gravity: np.ndarray) -> np.ndarray:
+    """The residual tolerance of each point, as :func:`residual_tolerance` gives it."""
+    scale = np.abs(gravity).max(axis=1, initial=0.0)
+    return np.array([residual_tolerance(float(s)) for s in scale])
+
+
+def _open_chain(system: System, Q: np.ndarray, allow: bool
+                ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    gravity, held = _held_force(system, Q)
+    U = np.ascontiguousarray(held[:, system.actuated_columns])
+    N = Q.shape[0]
+    free_at = system.unactuated
+    if not free_at.size:
+        return U, np.ones(N, dtype=bool), []
+    free = np.abs(held[:, free_at])
+    worst = free.argmax(axis=1)
+    equilibrium = free[np.arange(N), worst] <= _tolerances(gravity)
+    if not allow and not equilibrium.all():
+        k = int(np.flatnonzero(~equilibrium)[0])
+        i = int(free_at[worst[k]])
+        residual = np.zeros(system.nv)
+        residual[free_at] = held[k, free_at]
+        raise at_point(EquilibriumError(
+            f"scene '{system.scene.name}': q is not an equilibrium: the inputs cannot supply "
+            f"{held[k, i]:.6g} N or N*m along '{system.coordinate_names[i]}' (largest "
+            f"unactuated residual, tolerance {_tolerances(gravity[k:k + 1])[0]:.1e}); actuate "
+            "it, or pass allow_non_equilibrium=True (--allow-non-equilibrium on the command "
+            "line) to linearize about the falling state", residual,
+            system.coordinate_names), k)
+    return U, equilibrium, []
+
+
+def _mechanism(system: System, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    cons = system.constraints
+    held = _held_force(system, Q)[1]
+    tolerance = _tolerances(held)  # as solve_constrained: the scale of the held force
+    S = system.input_matrix
+    nu = S.shape[1]
+    N = Q.shape[0]
+    U = np.empty((N, nu))
+    family: list[int] = []
+    for k in range(N):
+        jac = cons.jacobian(Q[k])
+        rows = np.flatnonzero(jac.any(axis=1))
+        sol, rank = lstsq_rank(np.hstack([S, jac[rows].T]), held[k])
+        U[k] = sol[:nu]
+        if rank < nu + len(rows):
+            family.append(k)
+        residual = held[k] - S @ sol[:nu] - jac[rows].T @ sol[nu:]
+        i = int(np.abs(residual).argmax()) if residual.size else 0
+        if residual.size and abs(residual[i]) > tolerance[k]:
+            raise at_point(EquilibriumError(
+                f"scene '{system.scene.name}': q is not an equilibrium: a generalized force "
+                f"of {residual[i]:.6g} N or N*m along '{system.coordinate_names[i]}' is left "
+                f"over (tolerance {tolerance[k]:.1e}); with loops a non-equilibrium cannot be "
+                "linearized", residual, system.coordinate_names), k)
+    return U, np.ones(N, dtype=bool), family
+
+
+__all__ = ["holding_inputs", "rest_info", "rest_options"]
