@@ -110,13 +110,14 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
         model = linearize_trajectory(scene, q, v, u, t, workers=args.workers,
                                      executor=executor, derivatives=args.derivatives,
                                      step=args.step, progress=bar,
-                                     second_order=args.second_order)
+                                     second_order=args.second_order,
+                                     allow_non_equilibrium=args.allow_non_equilibrium or None)
     except ArgumentError as exc:
         bar.close()
         if exc.argument in ("q", "v", "u", "t"):
             raise ModelFileError(args.states, f"{exc.argument}: {exc.reason}") from None
-        if exc.argument == "second_order":
-            raise ArgumentError("--second-order", exc.reason) from None
+        if exc.argument in ("second_order", "allow_non_equilibrium"):
+            raise ArgumentError("--" + exc.argument.replace("_", "-"), exc.reason) from None
         raise
     except ShapeError as exc:
         bar.close()
@@ -131,7 +132,8 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
     where = (f"Dask at {args.dask}" if args.dask else plural(args.workers, "process",
                                                                 "processes"))
     n_points = len(model)
-    print(f"trajectory of '{model.name}': {plural(n_points, 'point')}, "
+    kind = "schedule of rest points" if model.info.get("at_rest") else "trajectory"
+    print(f"{kind} of '{model.name}': {plural(n_points, 'point')}, "
           f"{plural(len(model.state_names), 'state')}, "
           f"{plural(len(model.input_names), 'input')}, "
           f"{plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
@@ -394,7 +396,8 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     tra.add_argument("states", metavar="TRAJECTORY",
                      help=".npz with arrays q (N, nq), v (N, nv), u (N, nu) [, t (N,)], or .csv "
                           "with a header naming the columns t, q:<joint>, v:<coordinate>, "
-                          "u:<coordinate> (see the README)")
+                          "u:<coordinate> (see the README); q alone: a gain schedule of rest "
+                          "points, the holding inputs solved at each")
     tra.add_argument("--out", required=True, metavar="FILE", type=file_name("--out"),
                      help="write the stacked models (.npz or .mat)")
     tra.add_argument("--workers", type=int, default=1,
@@ -410,6 +413,9 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
                      help="with --dt: zero-order hold (default) or semi-implicit Euler")
     tra.add_argument("--second-order", action="store_true",
                      help="also store M, C_damp, K (and Bu) of every point (open chains)")
+    tra.add_argument("--allow-non-equilibrium", action="store_true",
+                     help="a schedule of rest points: keep points the inputs cannot hold "
+                          "(models of the falling state)")
     tra.add_argument("--no-progress", action="store_true", help="no progress bar")
     tra.set_defaults(func=_cmd_trajectory)
 

@@ -3,14 +3,16 @@
 **States** (``pinlin trajectory SCENE FILE``), one point per row:
 
 - ``.npz``: arrays ``q`` (N, nq), ``v`` (N, nv), ``u`` (N, nu) and optionally ``t`` (N,) [s];
-  no other member; never unpickled.
+  no other member; never unpickled. ``q`` without ``v`` and ``u``: a schedule of rest points
+  (the holding inputs solved at each, :mod:`pinlin.rest_schedule`).
 - ``.csv``: a header line naming the columns, then one line of numbers per point. Columns
   (any order, all required but ``t``; :func:`trajectory_columns` lists them for a scene):
   ``t`` [s]; ``q:<joint>`` for a joint with one configuration entry, ``q:<joint>[i]``
   (i = 0 .. nq-1) for the others (a free flyer's [x, y, z, qx, qy, qz, qw], a continuous
   joint's [cos, sin]); ``v:<coordinate>`` and ``u:<coordinate>`` named as the model's states
   and inputs (``v:root_joint[3]``, ``u:elbow_joint``) [SI units]. Lines starting with ``#``
-  and blank lines are skipped.
+  and blank lines are skipped. Without any ``v:`` and ``u:`` column: a schedule of rest
+  points, as for ``.npz``.
 
 **Models** (:meth:`TrajectoryModel.save`): ``.npz`` or MATLAB ``.mat`` holding ``A``, ``B``,
 ``C``, ``D``, ``f0``, ``q``, ``v``, ``u``, ``a``, ``y``, ``t`` when there are times and
@@ -80,8 +82,9 @@ def _file(path: Path, formats: Sequence[str], what: str) -> bytes:
 
 
 def read_states(path: str | Path, system: System
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-    """(q, v, u, t) of a trajectory file for ``system`` (t None when absent). Sizes and values
+                ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """(q, v, u, t) of a trajectory file for ``system`` (t None when absent; v and u None
+    when the file has configurations alone: a schedule of rest points). Sizes and values
     are checked by :func:`pinlin.linearize_trajectory`; here only the file's form.
 
     Raises:
@@ -97,7 +100,8 @@ def read_states(path: str | Path, system: System
 
 
 def _read_npz_states(path: Path, raw: bytes
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+                     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None,
+                                np.ndarray | None]:
     if not zipfile.is_zipfile(io.BytesIO(raw)):
         raise ModelFileError(path, "not an .npz archive (not a zip file)")
     try:
@@ -113,17 +117,19 @@ def _read_npz_states(path: Path, raw: bytes
         raise ModelFileError(path, f"unknown member {unknown[0]!r}; expected arrays q (N, nq), "
                                    "v (N, nv), u (N, nu) and optionally t (N,)")
     missing = [k for k in ("q", "v", "u") if k not in doc]
-    if missing:
+    if missing and missing != ["v", "u"]:
         raise ModelFileError(path, f"missing {', '.join(map(repr, missing))}; expected arrays "
-                                   "q (N, nq), v (N, nv), u (N, nu) and optionally t (N,)")
+                                   "q (N, nq), v (N, nv), u (N, nu) and optionally t (N,), or "
+                                   "q alone (a schedule of rest points)")
     for key, arr in doc.items():
         if arr.dtype.kind not in "fiu":
             raise ModelFileError(path, f"member '{key}' must hold numbers, got {arr.dtype}")
-    return doc["q"], doc["v"], doc["u"], doc.get("t")
+    return doc["q"], doc.get("v"), doc.get("u"), doc.get("t")
 
 
 def _read_csv_states(path: Path, raw: bytes, system: System
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+                     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None,
+                                np.ndarray | None]:
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -147,7 +153,8 @@ def _read_csv_states(path: Path, raw: bytes, system: System
                 f"expected t, {q_cols[0]}..., v:..., u:... (see pinlin.trajectory_columns)"
             raise ModelFileError(path, f"line {head_line}: unknown column '{name}' for scene "
                                        f"'{system.scene.name}'; {hint}")
-    missing = [c for c in (*q_cols, *v_cols, *u_cols) if c not in seen]
+    rest = not seen.intersection(v_cols) and not seen.intersection(u_cols)
+    missing = [c for c in (*q_cols, *([] if rest else [*v_cols, *u_cols])) if c not in seen]
     if missing:
         more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
         raise ModelFileError(path, f"line {head_line}: missing column"
@@ -175,6 +182,8 @@ def _read_csv_states(path: Path, raw: bytes, system: System
         return values[:, [index[c] for c in names]] if names else np.zeros((len(values), 0))
 
     t = values[:, index["t"]] if "t" in index else None
+    if rest:  # q alone: a schedule of rest points
+        return columns(q_cols), None, None, t
     return columns(q_cols), columns(v_cols), columns(u_cols), t
 
 

@@ -215,3 +215,60 @@ def test_a_schedule_needs_a_scene_that_solves_its_inputs():
     Q = np.tile(pinlin.operating_point(pinlin.Scene.load(URDF_DIR / "four_bar.toml")).q, (2, 1))
     with pytest.raises(ArgumentError, match='solve = "forces".*give v and u'):
         pinlin.linearize_trajectory(scene, Q)
+
+
+# --------------------------------------------------------------------------------------------
+# Command line: a state file with configurations alone is a schedule of rest points
+
+
+def test_cli_writes_the_schedule_of_an_npz_of_configurations(tmp_path, capfd):
+    from pinlin.cli import main
+
+    scene = pinlin.Scene.load(URDF_DIR / "four_bar.toml")
+    Q = schedule(scene, 12, 0.4, 8)
+    np.savez(tmp_path / "poses.npz", q=Q)
+    out = tmp_path / "schedule.npz"
+    assert main(["trajectory", "four_bar", str(tmp_path / "poses.npz"), "--out", str(out),
+                 "--no-progress"]) == 0
+    assert "schedule of rest points of 'four_bar': 12 points" in capfd.readouterr().out
+    back = pinlin.TrajectoryModel.load(out)
+    ref = pinlin.linearize_trajectory(scene, Q)
+    for key in ("A", "B", "u", "q", "lam"):
+        np.testing.assert_array_equal(getattr(back, key), getattr(ref, key))
+
+
+def test_cli_reads_a_csv_of_configurations_and_opts_in_to_falling_points(tmp_path, capfd):
+    from pinlin.cli import main
+
+    scene = pinlin.Scene.from_robot("solo12")
+    q0 = pinlin.operating_point(scene, allow_non_equilibrium=True).q
+    Q = np.tile(q0, (4, 1))
+    Q[:, 8] += np.linspace(0.0, 0.3, 4)
+    columns = pinlin.trajectory_columns(scene.system)[0]
+    path = tmp_path / "poses.csv"
+    path.write_text(",".join(columns) + "\n" + "\n".join(",".join(repr(float(x)) for x in row)
+                                                         for row in Q) + "\n")
+    out = tmp_path / "falling.npz"
+    assert main(["trajectory", "solo12", str(path), "--out", str(out), "--no-progress"]) == 2
+    err = capfd.readouterr().err
+    assert "trajectory point 0: scene 'solo12': q is not an equilibrium" in err
+    assert err.count("\n") == 1 and not out.exists()
+    assert main(["trajectory", "solo12", str(path), "--out", str(out), "--no-progress",
+                 "--allow-non-equilibrium"]) == 0
+    back = pinlin.TrajectoryModel.load(out)
+    ref = pinlin.linearize_trajectory(scene, Q, allow_non_equilibrium=True)
+    np.testing.assert_array_equal(back.A, ref.A)
+    assert back.info["non_equilibrium_points"] == [0, 1, 2, 3]
+
+
+def test_cli_refuses_the_opt_in_for_given_states(tmp_path, capfd):
+    from pinlin.cli import main
+
+    np.savez(tmp_path / "traj.npz", q=np.zeros((2, 6)), v=np.zeros((2, 6)),
+             u=np.zeros((2, 6)))
+    out = tmp_path / "m.npz"
+    assert main(["trajectory", "ur5", str(tmp_path / "traj.npz"), "--out", str(out),
+                 "--allow-non-equilibrium"]) == 2
+    err = capfd.readouterr().err
+    assert "argument '--allow-non-equilibrium': applies to a schedule of rest points" in err
+    assert err.count("\n") == 1 and not out.exists()
