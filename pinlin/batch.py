@@ -99,7 +99,9 @@ class Layout:
     = 2 nz states, one more input ``cond`` (N,) (the condition of Phi_d at each point) and
     the results ``vp`` (N, nv) (projected velocities), ``acc`` (N, nv) (accelerations),
     ``lam`` (N, m) (constraint forces) and ``dv`` (N,) (size of the velocity correction);
-    its C varies whenever the scene names outputs.
+    its C varies whenever the scene names outputs. Where the assembly computed them, the
+    closure frames' Jacobians at the assembled points come as one more input ``J``
+    (N, F, 6, nv), so that the model pass does not compute them again.
 
     With ``second_order`` (open chains), the results ``M``, ``C_damp`` and ``K`` (N, nv, nv)
     [kg, kg*m^2; N*m*s/rad ...; N*m/rad ...]: the mass, velocity and stiffness matrices.
@@ -115,12 +117,14 @@ class Layout:
     nx: int = 0
     m: int = 0
     second_order: bool = False
+    closure_frames: int = 0
 
     @classmethod
     def of(cls, system: System, points: int, nz: int | None = None,
-           second_order: bool = False) -> Layout:
+           second_order: bool = False, closure_frames: int = 0) -> Layout:
         """The layout of ``points`` points; ``nz``: a mechanism's independent coordinates;
-        ``second_order``: with the stacks M, C_damp, K."""
+        ``second_order``: with the stacks M, C_damp, K; ``closure_frames``: a mechanism's
+        closure frames whose Jacobians the assembly hands on (input ``J``)."""
         spec = system.outputs
         loops = nz is not None
         n = 2 * (system.nv if nz is None else nz)
@@ -128,7 +132,8 @@ class Layout:
         frames = spec is not None and (bool(spec.frames) or loops)
         return cls(points, system.nq, system.nv, len(system.actuated), p, frames,
                    spec is not None, n if loops else 0,
-                   system.constraints.size if loops else 0, bool(second_order))
+                   system.constraints.size if loops else 0, bool(second_order),
+                   int(closure_frames) if loops else 0)
 
     @property
     def n(self) -> int:
@@ -138,6 +143,8 @@ class Layout:
     @property
     def inputs(self) -> tuple[str, ...]:
         """Names of the arrays the caller fills before :func:`fill`."""
+        if self.closure_frames:
+            return ("q", "v", "u", "cond", "J")
         return ("q", "v", "u", "cond") if self.nx else ("q", "v", "u")
 
     def shapes(self, points: int | None = None) -> dict[str, tuple[int, ...]]:
@@ -148,6 +155,8 @@ class Layout:
         if self.nx:
             out.update({"cond": (N,), "vp": (N, self.nv), "acc": (N, self.nv),
                         "lam": (N, self.m), "dv": (N,)})
+        if self.closure_frames:
+            out["J"] = (N, self.closure_frames, 6, self.nv)
         if self.frames:
             out["C"] = (N, self.p, n)
         if self.has_y:

@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .assembly import lstsq_rank
+from . import loop_kernels as lk
 from .batch import at_point
 from .exceptions import ArgumentError, EquilibriumError
 from .operating_point import residual_tolerance
 from .system import System
+
+_EPS = float(np.finfo(float).eps)
 
 
 def rest_options(system: System, v: object, u: object, allow: object) -> bool | None:
@@ -82,9 +84,11 @@ def rest_info(equilibrium: np.ndarray, family: list[int]) -> dict:
     return info
 
 
-def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool
-                   ) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """The inputs that hold each configuration of ``Q`` (N, nq) at rest (module docstring).
+def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool,
+                   J: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The inputs that hold each configuration of ``Q`` (N, nq) at rest (module docstring);
+    ``J``: a mechanism's closure-frame Jacobians at ``Q`` (N, F, 6, nv) when the assembly
+    computed them (:func:`pinlin.loop_kernels.jacobian` makes Phi_q of them).
 
     Returns:
         (U (N, nu) [N*m or N], equilibrium (N,) booleans, the points whose split of inputs and
@@ -97,7 +101,7 @@ def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool
             "trajectory point k: " and naming the coordinate and the residual.
     """
     if system.constraints:
-        return _mechanism(system, Q)
+        return _mechanism(system, Q, J)
     return _open_chain(system, Q, allow_non_equilibrium)
 
 
@@ -147,31 +151,49 @@ def _open_chain(system: System, Q: np.ndarray, allow: bool
     return U, equilibrium, []
 
 
-def _mechanism(system: System, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
+def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
+               ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The least-norm [u0; lam] of every point at once: one batched SVD of the stacked
+    [S, G_k^T], singular values below eps max(rows, columns) s_max dropped, as
+    ``np.linalg.lstsq`` (LAPACK ``dgelsd``, what a single call uses) drops them. G_k holds
+    the rows that are not identically zero at some point; a row that vanishes at point k adds
+    a zero column there, which the least-norm solution leaves at zero and the rank count
+    leaves out, as the single call's row selection does."""
     cons = system.constraints
     held = _held_force(system, Q)[1]
     tolerance = _tolerances(held)  # as solve_constrained: the scale of the held force
     S = system.input_matrix
-    nu = S.shape[1]
-    N = Q.shape[0]
-    U = np.empty((N, nu))
-    family: list[int] = []
-    for k in range(N):
-        jac = cons.jacobian(Q[k])
-        rows = np.flatnonzero(jac.any(axis=1))
-        sol, rank = lstsq_rank(np.hstack([S, jac[rows].T]), held[k])
-        U[k] = sol[:nu]
-        if rank < nu + len(rows):
-            family.append(k)
-        residual = held[k] - S @ sol[:nu] - jac[rows].T @ sol[nu:]
-        i = int(np.abs(residual).argmax()) if residual.size else 0
-        if residual.size and abs(residual[i]) > tolerance[k]:
-            raise at_point(EquilibriumError(
-                f"scene '{system.scene.name}': q is not an equilibrium: a generalized force "
-                f"of {residual[i]:.6g} N or N*m along '{system.coordinate_names[i]}' is left "
-                f"over (tolerance {tolerance[k]:.1e}); with loops a non-equilibrium cannot be "
-                "linearized", residual, system.coordinate_names), k)
-    return U, np.ones(N, dtype=bool), family
+    N, nv, nu = Q.shape[0], system.nv, S.shape[1]
+    plan = None if frame_jacobians is None else lk.plan(system)
+    if plan is not None:
+        J = lk.jacobian(plan, frame_jacobians)
+    else:
+        J = np.empty((N, cons.size, nv))
+        for k in range(N):
+            J[k] = cons.jacobian(Q[k])
+    present = J.any(axis=2)  # (N, m): rows not identically zero at each point
+    rows = np.flatnonzero(present.any(axis=0))
+    SG = np.concatenate([np.broadcast_to(S, (N, nv, nu)), J[:, rows].transpose(0, 2, 1)],
+                        axis=2)
+    left, sv, right = np.linalg.svd(SG, full_matrices=False)
+    columns = nu + present[:, rows].sum(axis=1)
+    keep = sv > (_EPS * np.maximum(nv, columns) * sv[:, 0])[:, None]
+    inverse = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep)
+    coefficients = inverse * np.einsum("kij,ki->kj", left, held)
+    solution = np.einsum("kji,kj->ki", right, coefficients)
+    residual = held - np.einsum("kij,kj->ki", SG, solution)
+    worst = np.abs(residual).argmax(axis=1) if nv else np.zeros(N, dtype=int)
+    bad = np.flatnonzero(np.abs(residual[np.arange(N), worst]) > tolerance) if nv else []
+    if len(bad):
+        k = int(bad[0])
+        i = int(worst[k])
+        raise at_point(EquilibriumError(
+            f"scene '{system.scene.name}': q is not an equilibrium: a generalized force "
+            f"of {residual[k, i]:.6g} N or N*m along '{system.coordinate_names[i]}' is left "
+            f"over (tolerance {tolerance[k]:.1e}); with loops a non-equilibrium cannot be "
+            "linearized", residual[k], system.coordinate_names), k)
+    family = [int(k) for k in np.flatnonzero(keep.sum(axis=1) < columns)]
+    return np.ascontiguousarray(solution[:, :nu]), np.ones(N, dtype=bool), family
 
 
 __all__ = ["holding_inputs", "rest_info", "rest_options"]

@@ -392,14 +392,17 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
         loops.refuse(system, derivatives)
         check_memory(Q.nbytes, f"scene '{system.scene.name}': the assembled configurations "
                                f"of {N} points", "8 bytes a number")
-        inputs["q"], frozen, inputs["cond"], moved = loops.close_loops(
+        inputs["q"], frozen, inputs["cond"], moved, jacobians = loops.close_loops(
             system, Q, None if progress is None else loops.first_pass(progress, N))
+        if jacobians is not None:  # the assembly's last kinematics pass, for the models
+            inputs["J"] = jacobians
         progress = None if progress is None else loops.second_pass(progress, N)
     if rest:
-        inputs["u"], at_rest, family = holding_inputs(system, inputs["q"], bool(allow))
+        inputs["u"], at_rest, family = holding_inputs(system, inputs["q"], bool(allow),
+                                                      inputs.get("J"))
     options = Options(derivatives, step, frozen, second_order)
     layout = Layout.of(system, N, None if frozen is None else len(frozen.independent),
-                       second_order)
+                       second_order, inputs["J"].shape[1] if "J" in inputs else 0)
     check_memory(layout.offsets()[1], f"scene '{system.scene.name}': the models of {N} points",
                  "A, B, f0 (and M, C_damp, K) stacked, 8 bytes a number")
     if executor is not None:

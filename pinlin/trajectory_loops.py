@@ -137,7 +137,8 @@ def second_pass(progress: Callable[[int, int], None], N: int) -> Callable[[int, 
 
 
 def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | None = None
-                ) -> tuple[np.ndarray, FrozenPartition, np.ndarray, np.ndarray]:
+                ) -> tuple[np.ndarray, FrozenPartition, np.ndarray, np.ndarray,
+                           np.ndarray | None]:
     """Assemble every point (module docstring, pass 1) and check the frozen partition there.
 
     Args:
@@ -148,7 +149,9 @@ def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | N
 
     Returns:
         (Q assembled (N, nq), the partition of point 0, the condition of Phi_d at each point
-        (N,), the norm of difference(q given, q assembled) at each point (N,) [m or rad]).
+        (N,), the norm of difference(q given, q assembled) at each point (N,) [m or rad],
+        the closure frames' Jacobians at the assembled points (N, F, 6, nv) where the stacked
+        assembly computed them, else None).
 
     Raises:
         AssemblyError: the loops do not close at some point (the message starts with
@@ -172,8 +175,9 @@ def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | N
     frozen = FrozenPartition.of(part)
     out[0], condition[0] = q, part.condition
     plan = lk.plan(system)
+    J = None
     if plan is not None and len(part.dependent):
-        _close_stacked(system, plan, Q, frozen, out, condition, report)
+        J = _close_stacked(system, plan, Q, frozen, out, condition, report)
     else:
         _close_per_point(system, Q, frozen, out, condition, report)
     if report is not None:
@@ -188,15 +192,16 @@ def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | N
             f"{_names(system, frozen)}) has condition {condition[worst]:.3g}; about "
             f"{max(16 - np.log10(condition[worst]), 0):.0f} significant digits of that "
             "point's model are reliable", float(condition[worst])), stacklevel=3)
-    return out, frozen, condition, moved
+    return out, frozen, condition, moved, J
 
 
 def _close_stacked(system: System, plan: lk.ClosurePlan, Q: np.ndarray,
                    frozen: FrozenPartition, out: np.ndarray, condition: np.ndarray,
-                   report: Callable[[int], None] | None = None) -> None:
+                   report: Callable[[int], None] | None = None) -> np.ndarray:
     """Points 1.. by :func:`pinlin.trajectory_assembly.close`, the conditions of Phi_d in
     one stacked SVD; the first singular point (before a point that failed to assemble) is
-    refused, as :func:`_close_per_point` does."""
+    refused, as :func:`_close_per_point` does. Returns the closure frames' Jacobians at the
+    assembled points (N, F, 6, nv), for the model pass."""
     rows = np.array(frozen.rows, dtype=int)
     dep = np.array(frozen.dependent, dtype=int)
     z = np.array(frozen.independent, dtype=int)
@@ -215,6 +220,7 @@ def _close_stacked(system: System, plan: lk.ClosurePlan, Q: np.ndarray,
             raise _at_point(exc, failed) from None
         raise exc
     out[:] = solved
+    return J
 
 
 def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
@@ -287,7 +293,9 @@ def _fill_block(system: System, plan: lk.ClosurePlan, arrays: Mapping[str, np.nd
     z = np.array(frozen.independent, dtype=int)
     dep = np.array(frozen.dependent, dtype=int)
     Q, V = arrays["q"][lo:hi], arrays["v"][lo:hi]
-    st = moving_batch.states(system, plan, Q, V, arrays["u"][lo:hi], rows)
+    J = arrays.get("J")  # the closure frames' Jacobians from the assembly, when it had them
+    st = moving_batch.states(system, plan, Q, V, arrays["u"][lo:hi], rows,
+                             None if J is None else J[lo:hi])
     mats = moving_batch.models(system, plan, st, rows, z, dep)
     arrays["A"][lo:hi] = mats.A
     arrays["B"][lo:hi] = mats.B

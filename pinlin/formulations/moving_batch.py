@@ -90,22 +90,27 @@ def applied(system, Q: np.ndarray, V: np.ndarray, U: np.ndarray) -> np.ndarray:
 
 
 def states(system, plan: lk.ClosurePlan, Q: np.ndarray, V: np.ndarray, U: np.ndarray,
-           rows: np.ndarray) -> Stack:
+           rows: np.ndarray, J: np.ndarray | None = None) -> Stack:
     """Project the velocities and solve the constrained dynamics at N assembled
     configurations ``Q`` (N, nq) with given velocities ``V`` (N, nv) [rad/s or m/s] and
-    inputs ``U`` (N, nu) [N*m or N]; ``rows``: the independent constraint rows.
+    inputs ``U`` (N, nu) [N*m or N]; ``rows``: the independent constraint rows; ``J``: the
+    closure frames' Jacobians at ``Q`` (N, F, 6, nv, :func:`pinlin.loop_kernels.frame_jacobians`)
+    when the caller has them (the assembly's last kinematics pass), else computed here.
 
     Raises:
         numpy.linalg.LinAlgError: a KKT matrix is singular (at some point of the stack).
     """
     model, data = system.model, system.data
     N, nv = V.shape
-    F = len(plan.frames)
-    J = np.zeros((N, F, 6, nv))
     M = np.empty((N, nv, nv))
-    for k in range(N):
-        lk.frame_jacobians(model, data, Q[k], plan.frames, J[k])
-        M[k] = pin.crba(model, data, Q[k])
+    if J is None:
+        J = np.zeros((N, len(plan.frames), 6, nv))
+        for k in range(N):
+            lk.frame_jacobians(model, data, Q[k], plan.frames, J[k])
+            M[k] = pin.crba(model, data, Q[k])
+    else:
+        for k in range(N):
+            M[k] = pin.crba(model, data, Q[k])
     M = _symmetric(M)
     jac = lk.jacobian(plan, J)
     G = jac[:, rows]
