@@ -31,6 +31,7 @@ vertical force against the weight, and a point contact that pulls gets a Contact
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -57,10 +58,14 @@ class ConstrainedPoint:
     Attributes:
         partition: Independent rows and coordinates at q0.
         jacobian: The independent rows of Phi_q at q0 (m x nv).
+        stack: At a moving state solved by the stacked kernels, their one-point
+            :class:`pinlin.formulations.moving_batch.Stack` (frame Jacobians, M, the velocity
+            terms), which the model reuses; else None.
     """
 
     partition: Partition
     jacobian: np.ndarray
+    stack: Any = None
 
 
 def input_vector(system, values) -> np.ndarray:

@@ -93,6 +93,7 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
     it with the partition of their first point."""
     cons = system.constraints
     plan = lk.plan(system)
+    st = None
     if plan is not None:  # the stacked kernels with N = 1 (as a trajectory's points)
         st = moving_batch.states(system, plan, q0[None], v0[None], u0[None], part.rows)
         G = st.jac[0][part.rows]
@@ -117,7 +118,7 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
     op = OperatingPoint(q=q0, v=v, u=u0, a=a0, residual=M0 @ a0,
                         equilibrium=False, tolerance=tol, lam=lam, notes=tuple(notes),
                         lam_names=cons.row_names)
-    return op, ConstrainedPoint(part, G)
+    return op, ConstrainedPoint(part, G, st)
 
 
 def _kkt(M: np.ndarray, G: np.ndarray) -> np.ndarray:
@@ -150,7 +151,9 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
     nv, nz = system.nv, len(z)
     plan = lk.plan(system)
     if plan is not None:  # the stacked kernels with N = 1 (as a trajectory's points)
-        st = moving_batch.given(system, plan, op.q, op.v, op.a, op.lam)
+        st = cp.stack  # the point's own stack (moving_point), else rebuilt from op
+        if st is None:
+            st = moving_batch.given(system, plan, op.q, op.v, op.a, op.lam)
         mats = moving_batch.models(system, plan, st, rows, z, part.dependent)
         A, B, f0, R, W = mats.A[0], mats.B[0], mats.f0[0], mats.R[0], mats.W[0]
         S = system.input_matrix
