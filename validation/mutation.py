@@ -117,6 +117,15 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/stick_figure.py", "self._anchors[ident] if kind == \"anchor\" else",
         "pin.SE3.Identity() if kind == \"anchor\" else",
         "mode pictures draw every contact anchor at the world origin"),
+    "schedule_statics_without_springs": (
+        "pinlin/rest_schedule.py", "    held = _held_force(system, Q)[1]",
+        "    held = _held_force(system, Q)[0]",
+        "a mechanism's gain schedule solves its holding inputs without the springs"),
+    "schedule_never_refuses": (
+        "pinlin/rest_schedule.py",
+        "    equilibrium = free[np.arange(N), worst] <= _tolerances(gravity)",
+        "    equilibrium = np.ones(N, dtype=bool)",
+        "a gain schedule of an open chain calls every point an equilibrium"),
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),
