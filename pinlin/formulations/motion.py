@@ -43,6 +43,7 @@ import numpy as np
 import pinocchio as pin
 
 from .. import loop_kernels as lk
+from ..arrays import read_only
 from ..assembly import Partition, assemble, partition, projection
 from ..derivatives import second_order_terms
 from ..equilibrium import ConstrainedPoint
@@ -176,10 +177,14 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
         "dropped_rows": list(part.dropped), "R": R.tolist(),
         "condition": {"constraint_jacobian": part.condition},
     }
-    return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
-                       state_names=states, input_names=system.input_names,
-                       output_names=out_names, operating_point=op.with_outputs(y0),
-                       name=system.scene.name, info=info, f0=f0)
+    # Built here with consistent shapes: the trusted constructor keeps the finite and
+    # distinct-name checks and skips the rest (as linearize_reduced).
+    return LinearModel.assembled(
+        A=read_only(A), B=read_only(B), C=read_only(Cout),
+        D=read_only(np.zeros((Cout.shape[0], S.shape[1]))), E=None, F=None,
+        state_names=states, input_names=system.input_names, output_names=tuple(out_names),
+        M=None, C_damp=None, K=None, Bu=None, G=None, operating_point=op.with_outputs(y0),
+        name=system.scene.name, info=info, f0=read_only(np.array(f0, dtype=float)), dt=0.0)
 
 
 def _per_point(system, op: OperatingPoint, part: Partition, G: np.ndarray):
