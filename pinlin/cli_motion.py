@@ -116,8 +116,11 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
         bar.close()
         if exc.argument in ("q", "v", "u", "t"):
             raise ModelFileError(args.states, f"{exc.argument}: {exc.reason}") from None
-        if exc.argument in ("second_order", "allow_non_equilibrium"):
-            raise ArgumentError("--" + exc.argument.replace("_", "-"), exc.reason) from None
+        flag = {"second_order": "--second-order", "step": "--step", "workers": "--workers",
+                "allow_non_equilibrium": "--allow-non-equilibrium", "executor": "--dask",
+                "derivatives": "--derivatives"}.get(exc.argument)
+        if flag is not None:
+            raise ArgumentError(flag, exc.reason) from None
         raise
     except ShapeError as exc:
         bar.close()

@@ -113,14 +113,12 @@ def _semi_implicit_euler(model, dt: float, f0: np.ndarray
     return A_d, B_d, f_d
 
 
-
-
 #: Points per block of the stacked zero-order hold (bounds its temporary memory).
 ZOH_BLOCK = 128
 
 
 def stacked_zoh(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
-         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Van Loan's augmented exponential, expm([[A, B, f0], [0, 0, 0]] dt), for stacks of
     models (points first), in blocks of :data:`ZOH_BLOCK` points."""
     N, n, m = B.shape
@@ -137,7 +135,7 @@ def stacked_zoh(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
 
 
 def stacked_euler(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The semi-implicit Euler map of :func:`discretize`, for stacks of models (points first)."""
     nv = A.shape[1] // 2
     Aqq, Aqv, Avq, Avv = A[:, :nv, :nv], A[:, :nv, nv:], A[:, nv:, :nv], A[:, nv:, nv:]

@@ -68,7 +68,12 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
 #: Data formats whose signature any file of that kind has (every JSON object starts with
 #: "{", every .npz is a zip): what pinlin's own files hold besides (a model's or trajectory's
 #: names, a history's columns).
-_NPZ_MEMBERS = ({"state_names.npy"}, {"t.npy", "names.npy", "values.npy"})
+_MODEL_ARRAYS = ("A", "B", "C", "D", "E", "F", "G", "M", "C_damp", "K", "Bu", "f0", "q", "v",
+                 "u", "a", "y", "t", "lam", "meta", "state_names", "input_names", "output_names")
+#: (members every such archive has, members it may have): a model or trajectory model, a
+#: simulation history. An archive with any other member is the user's, whatever it shares.
+_NPZ_MEMBERS = (({"A.npy", "meta.npy", "state_names.npy"}, {f"{k}.npy" for k in _MODEL_ARRAYS}),
+                ({"t.npy", "names.npy", "values.npy"}, {"t.npy", "names.npy", "values.npy"}))
 _JSON_START = b'{\n "state_names"'
 
 
@@ -95,7 +100,7 @@ def _pinlin_content(target: Path, suffix: str) -> bool:
         if suffix == ".npz":
             with zipfile.ZipFile(target) as archive:
                 names = set(archive.namelist())
-            return any(member <= names for member in _NPZ_MEMBERS)
+            return any(required <= names <= allowed for required, allowed in _NPZ_MEMBERS)
         if suffix == ".mat":
             from scipy.io import whosmat
 

@@ -25,12 +25,18 @@ f the generalized gravity (and centrifugal force in a rotating scene) minus the 
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable, Sequence
+
 import numpy as np
+import pinocchio as pin
 
 from . import loop_kernels as lk
-from .batch import at_point
-from .exceptions import ArgumentError, EquilibriumError
+from .batch import Layout, at_point
+from .conditioning import AccuracyWarning
+from .exceptions import ArgumentError, EquilibriumError, ModelError, PinlinError, SceneError
 from .operating_point import residual_tolerance
+from .resources import check_memory
 from .system import System
 
 _EPS = float(np.finfo(float).eps)
@@ -43,7 +49,9 @@ def rest_options(system: System, v: object, u: object, allow: object) -> bool | 
 
     Raises:
         ArgumentError: one of v and u without the other, ``allow`` not a bool or given with
-            the states, or a scene whose ``operating_point.solve`` is not ``"inputs"``.
+            the states.
+        SceneError: a schedule of a scene whose ``operating_point.solve`` is not
+            ``"inputs"``.
     """
     if (v is None) != (u is None):
         missing = "u" if u is None else "v"
@@ -59,17 +67,25 @@ def rest_options(system: System, v: object, u: object, allow: object) -> bool | 
         return None
     spec = system.scene.operating_point
     if spec.solve != "inputs":
-        raise ArgumentError("v", f"scene '{system.scene.name}' has operating_point.solve = "
-                                 f"\"{spec.solve}\": a schedule of rest points (v and u "
-                                 "omitted) solves the holding inputs, as solve = \"inputs\" "
-                                 "does; give v and u to linearize at given states")
+        raise SceneError(system.scene.source, "operating_point.solve",
+                         f"a schedule of rest points (v and u omitted) solves the holding "
+                         f"inputs, as solve = \"inputs\" does; scene '{system.scene.name}' "
+                         f"asks for \"{spec.solve}\": set solve = \"inputs\", or give v and u "
+                         "to linearize at given states")
     return bool(spec.allow_non_equilibrium if allow is None else allow)
 
 
-def rest_info(equilibrium: np.ndarray, family: list[int]) -> dict:
+def rest_info(equilibrium: np.ndarray, family: list[int], system: System | None = None,
+              Q: np.ndarray | None = None, condition: Sequence[float] | None = None) -> dict:
     """The metadata a schedule adds to its model's ``info``: ``at_rest`` (True), the points
-    off equilibrium (opted in) and those whose inputs are a least-norm choice, with notes."""
+    off equilibrium (opted in) and those whose inputs are a least-norm choice, with notes; for
+    a mechanism's stack (``system``, its assembled ``Q`` and the condition of Phi_d at each
+    point), the check of :func:`sensitivity` at its point nearest a singular position."""
     info: dict = {"at_rest": True, "notes": []}
+    if system is not None and Q is not None and condition is not None:
+        checked = sensitivity(system, Q, np.asarray(condition))
+        if checked is not None:
+            info["operating_point_sensitivity"] = checked
     off = [int(k) for k in np.flatnonzero(~equilibrium)]
     if off:
         info["non_equilibrium_points"] = off
@@ -85,7 +101,8 @@ def rest_info(equilibrium: np.ndarray, family: list[int]) -> dict:
 
 
 def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool,
-                   J: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list[int]]:
+                   J: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray | None]:
     """The inputs that hold each configuration of ``Q`` (N, nq) at rest (module docstring);
     ``J``: a mechanism's closure-frame Jacobians at ``Q`` (N, F, 6, nv) when the assembly
     computed them (:func:`pinlin.loop_kernels.jacobian` makes Phi_q of them).
@@ -93,7 +110,8 @@ def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool,
     Returns:
         (U (N, nu) [N*m or N], equilibrium (N,) booleans, the points whose split of inputs and
         constraint forces is not unique (redundant actuation or rows; the least-norm one is
-        taken, as a single call takes it)).
+        taken, as a single call takes it), a mechanism's constraint forces (N, m) [N, N*m]
+        (that least-norm split, zero on rows that vanish; None for an open chain)).
 
     Raises:
         EquilibriumError: the first point that is not an equilibrium (a mechanism's always; an
@@ -102,7 +120,7 @@ def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool,
     """
     if system.constraints:
         return _mechanism(system, Q, J)
-    return _open_chain(system, Q, allow_non_equilibrium)
+    return (*_open_chain(system, Q, allow_non_equilibrium), None)
 
 
 def _held_force(system: System, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -152,7 +170,7 @@ def _open_chain(system: System, Q: np.ndarray, allow: bool
 
 
 def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
-               ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+               ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
     """The least-norm [u0; lam] of every point at once: one batched SVD of the stacked
     [S, G_k^T], singular values below eps max(rows, columns) s_max dropped, as
     ``np.linalg.lstsq`` (LAPACK ``dgelsd``, what a single call uses) drops them. G_k holds
@@ -193,7 +211,126 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
             f"over (tolerance {tolerance[k]:.1e}); with loops a non-equilibrium cannot be "
             "linearized", residual[k], system.coordinate_names), k)
     family = [int(k) for k in np.flatnonzero(keep.sum(axis=1) < columns)]
-    return np.ascontiguousarray(solution[:, :nu]), np.ones(N, dtype=bool), family
+    lam = np.zeros((N, cons.size))
+    lam[:, rows] = solution[:, nu:]
+    return np.ascontiguousarray(solution[:, :nu]), np.ones(N, dtype=bool), family, lam
 
 
-__all__ = ["holding_inputs", "rest_info", "rest_options"]
+def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray) -> dict | None:
+    """What a single call checks near a singular position, at the schedule's point of largest
+    condition of Phi_d when it exceeds SENSITIVITY_CHECK (where a single call starts to check;
+    :func:`pinlin.formulations.constrained.assembly_sensitivity`): the relative change of A
+    between configurations the assembly cannot tell apart, with an AccuracyWarning naming the
+    point above SENSITIVITY_WARN, as the single call warns. Returns {"point", "change"}, or
+    None where no point is that close."""
+    from .formulations.constrained import SENSITIVITY_CHECK, SENSITIVITY_WARN
+    from .linearization import linearize
+
+    k = int(np.argmax(condition)) if len(condition) else 0
+    if not len(condition) or not condition[k] > SENSITIVITY_CHECK:
+        return None
+    with warnings.catch_warnings():  # its warnings are re-issued below, naming the point
+        warnings.simplefilter("ignore", AccuracyWarning)
+        model = linearize(system, q=Q[k])
+    change = model.info["condition"].get("operating_point_sensitivity")
+    if change is None:
+        return None
+    if change > SENSITIVITY_WARN:
+        warnings.warn(AccuracyWarning(
+            f"scene '{system.scene.name}': trajectory point {k}, the schedule's point nearest "
+            f"a singular position of the mechanism (condition {condition[k]:.3g}): "
+            f"configurations the assembly cannot tell apart give state matrices {change:.1e} "
+            "(relative) apart; the model there is not reliable (move the schedule away from "
+            "the limit, or name other independent coordinates)", 1.0 / change), stacklevel=4)
+    return {"point": k, "change": float(change)}
+
+
+def needs_single_calls(system: System, derivatives: str) -> bool:
+    """Whether a schedule of ``system`` is linearized point by point with single static calls
+    (:func:`single_calls`): contacts (anchored where each configuration puts their frames, as
+    ``linearize(scene, q=q[k])`` anchors them) and what the stacked mechanism path does not
+    cover (weld loops, a floating base, numerical derivatives of a mechanism)."""
+    cons = system.constraints
+    if not cons:
+        return False
+    return bool(cons.contacts) or cons.has_welds or system.base_joint is not None \
+        or derivatives != "analytic"
+
+
+def single_calls(system: System, Q: np.ndarray, *, derivatives: str, step: object,
+                 allow: bool, parallel: bool = False,
+                 progress: Callable[[int, int], None] | None = None) -> dict:
+    """A schedule by :func:`pinlin.linearize` at each ``q=Q[k]`` (:func:`needs_single_calls`):
+    every point assembled from its own configuration, its contacts anchored there, its
+    statics solved. Returns the fields of a :class:`pinlin.TrajectoryModel` (stacked,
+    read-only) but ``t``.
+
+    Raises:
+        ArgumentError: ``parallel`` (workers or an executor were asked for): this path runs
+            in this process.
+        ResourceError: the stacked models would exceed the memory limit.
+        PinlinError: a point's own error, its message starting with "trajectory point k: ";
+            ModelError where a point's independent coordinates (chosen by pinlin) differ from
+            point 0's: every point of a stack has the same states.
+    """
+    from .linearization import linearize
+
+    if parallel:
+        raise ArgumentError("workers", f"scene '{system.scene.name}' (contacts, weld loops, a "
+                                       "floating base or numerical derivatives of a mechanism) "
+                                       "has its schedule of rest points linearized point by "
+                                       "point in this process; leave out workers and executor")
+    check_memory(Layout.of(system, len(Q)).offsets()[1], f"scene '{system.scene.name}': the "
+                 f"models of {len(Q)} points", "A, B, f0 stacked, 8 bytes a number")
+
+    models = []
+    for k, q in enumerate(Q):
+        try:
+            model = linearize(system, q=q, derivatives=derivatives, step=step,
+                              allow_non_equilibrium=allow, estimate_error=False)
+        except PinlinError as exc:
+            raise at_point(exc, k) from None
+        if models and model.state_names != models[0].state_names:
+            raise ModelError(
+                f"trajectory point {k}: scene '{system.scene.name}': pinlin chose other "
+                f"independent coordinates here ({', '.join(model.info['independent'])}) than at "
+                f"point 0 ({', '.join(models[0].info['independent'])}); every point of a "
+                "schedule has the same states: name them in operating_point.independent")
+        models.append(model)
+        if progress is not None:
+            progress(k + 1, len(Q))
+    first = models[0]
+    ops = [m.operating_point for m in models]
+    n = first.A.shape[0]
+    fields = {
+        "A": np.stack([m.A for m in models]), "B": np.stack([m.B for m in models]),
+        "C": np.stack([m.C for m in models]), "D": np.stack([m.D for m in models]),
+        "f0": np.stack([np.zeros(n) if m.f0 is None else m.f0 for m in models]),
+        "q": np.stack([op.q for op in ops]), "v": np.stack([op.v for op in ops]),
+        "u": np.stack([op.u for op in ops]), "a": np.stack([op.a for op in ops]),
+        "y": np.stack([op.y for op in ops]),
+        "lam": np.stack([op.lam for op in ops]) if first.operating_point.lam is not None
+        else None}
+    for arr in fields.values():
+        if arr is not None:
+            arr.setflags(write=False)
+    keep = ("formulation", "derivatives", "basis", "effects", "velocity_terms", "base",
+            "independent", "constraint_rows", "dropped_rows", "step")
+    info = {key: first.info[key] for key in keep if key in first.info}
+    info.update(points=len(models), path="per point (single calls at rest)")
+    if first.operating_point.lam is not None:
+        info["lam_names"] = list(first.operating_point.lam_names)
+        info["loops"] = {
+            "condition": [m.info["condition"].get("constraint_jacobian", 1.0) for m in models],
+            "position_correction": [float(np.linalg.norm(pin.difference(system.model, q,
+                                                                         op.q)))
+                                    for q, op in zip(Q, ops, strict=True)],
+            "velocity_correction": [0.0] * len(models)}
+    equilibrium = np.array([op.equilibrium for op in ops])
+    family = [k for k, op in enumerate(ops) if any("not unique" in note for note in op.notes)]
+    info.update(rest_info(equilibrium, family))
+    return {**fields, "state_names": first.state_names, "input_names": first.input_names,
+            "output_names": first.output_names, "name": first.name, "info": info}
+
+
+__all__ = ["holding_inputs", "needs_single_calls", "rest_info", "rest_options", "single_calls"]

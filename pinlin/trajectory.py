@@ -34,7 +34,8 @@ from .linear_model import LinearModel
 from .linearization import _system
 from .operating_point import OperatingPoint
 from .resources import check_memory
-from .rest_schedule import holding_inputs, rest_info, rest_options
+from .rest_schedule import holding_inputs, needs_single_calls, rest_info, rest_options
+from .rest_schedule import single_calls as schedule_by_single_calls
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
 from .trajectory_inputs import check_normalized, check_options, points, times
@@ -61,7 +62,10 @@ class TrajectoryModel:
         state_names, input_names, output_names: Signal names (n, m, p).
         name: Scene name.
         info: Metadata: formulation, derivatives, effects, base, points, path ("batch": one
-            ``computeABADerivatives`` per point; "per point": :func:`pinlin.linearize`).
+            ``computeABADerivatives`` per point; "per point": :func:`pinlin.linearize`); a
+            schedule of rest points (:mod:`pinlin.rest_schedule`) adds ``at_rest`` (True),
+            ``notes``, and where they apply ``non_equilibrium_points``,
+            ``least_norm_points`` and ``operating_point_sensitivity``.
         dt: Sample time [s] of discrete models; 0 for continuous ones.
         lam: (N, m) constraint forces of a mechanism [N or N*m] (names in
             ``info["lam_names"]``; :mod:`pinlin.trajectory_loops`), else None. A mechanism's
@@ -163,8 +167,9 @@ class TrajectoryModel:
 
     def at(self, k: int) -> LinearModel:
         """The model of point ``k`` (negative: from the end) as a :class:`LinearModel`: what
-        :func:`pinlin.linearize` gives at (q[k], v[k], u[k]) (a schedule of rest points:
-        at q[k], an equilibrium, its f0 None), to rounding, with the
+        :func:`pinlin.linearize` gives at (q[k], v[k], u[k]) (a schedule of rest points: at
+        q[k], an equilibrium with f0 None, or a falling point opted in with its f0), to
+        rounding, with the
         second-order matrices M, C_damp, K, Bu where the trajectory has them
         (``second_order=True``), else None. Its operating point carries q, v, u, a and y;
         its ``residual`` (M a0) is None.
@@ -321,7 +326,11 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
     holding inputs u0 and constraint forces solved at every point; a mechanism's at its
     assembled configuration), to rounding; ``model.u`` holds those inputs, ``model.a`` is
     zero at every equilibrium (:mod:`pinlin.rest_schedule`). A mechanism is assembled from
-    point to point, so the schedule stays on the assembly branch of its first point.
+    point to point, so the schedule stays on the assembly branch of its first point (and
+    point k is the single call at ``q=model.q[k]`` whenever that call chooses the same
+    coordinates). Scenes with contacts (anchored where each q[k] puts their frames, as a
+    single call anchors them), weld loops, a floating base, or a mechanism's numerical
+    derivatives are scheduled by single calls, one per point, in this process.
 
     Args:
         scene: A :class:`Scene`, its :class:`System`, or a scene file / URDF / bundled scene /
@@ -359,8 +368,10 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
         ShapeError: an array of the wrong shape (the message names the argument).
         ArgumentError: NaN, inf or out-of-range entries, configurations that are not
             normalized (naming the argument and the first bad row), or a bad option
-            (``second_order=True`` on a mechanism; v without u or u without v; a schedule of
-            rest points of a scene whose ``solve`` is not ``"inputs"``).
+            (``second_order=True`` on a mechanism; v without u or u without v; workers or an
+            executor for a schedule scheduled by single calls).
+        SceneError: a schedule of rest points of a scene whose ``operating_point.solve`` is
+            not ``"inputs"``.
         EquilibriumError: a point of a schedule of rest points that the inputs (and a
             mechanism's constraint forces) cannot hold, naming it.
         ModelError: a point where the model cannot be built (a singular mass matrix; for a
@@ -385,6 +396,11 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
     U = np.zeros((N, nu)) if rest else points("u", u, nu, "inputs", N, COEFFICIENT_LIMIT)
     check_normalized(system, Q)
     T = times(t, N)
+    if rest and needs_single_calls(system, derivatives):  # point by point, in this process
+        return TrajectoryModel.trusted(**schedule_by_single_calls(
+            system, Q, derivatives=derivatives, step=step, allow=bool(allow),
+            parallel=workers > 1 or executor is not None, progress=progress),
+            t=T, dt=0.0, **dict.fromkeys(_SECOND_ORDER))
 
     inputs = {"q": Q, "v": V, "u": U}
     frozen = moved = None
@@ -397,14 +413,14 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
         if jacobians is not None:  # the assembly's last kinematics pass, for the models
             inputs["J"] = jacobians
         progress = None if progress is None else loops.second_pass(progress, N)
-    if rest:
-        inputs["u"], at_rest, family = holding_inputs(system, inputs["q"], bool(allow),
-                                                      inputs.get("J"))
     options = Options(derivatives, step, frozen, second_order)
     layout = Layout.of(system, N, None if frozen is None else len(frozen.independent),
                        second_order, inputs["J"].shape[1] if "J" in inputs else 0)
     check_memory(layout.offsets()[1], f"scene '{system.scene.name}': the models of {N} points",
                  "A, B, f0 (and M, C_damp, K) stacked, 8 bytes a number")
+    if rest:
+        inputs["u"], at_rest, family, lam = holding_inputs(system, inputs["q"], bool(allow),
+                                                           inputs.get("J"))
     if executor is not None:
         from .parallel import run_executor
 
@@ -423,12 +439,16 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
     check(system, arrays)
     if rest:  # a0 = 0 at an equilibrium, as a single call reports it (not rounding noise)
         arrays["f0"][at_rest] = 0.0
-        if frozen is not None:
+        if frozen is not None:  # and the least-norm forces a single call reports
             arrays["acc"][at_rest] = 0.0
-    model = (_assemble_loops(system, arrays, layout, T, frozen, moved) if frozen is not None
-             else _assemble(system, arrays, layout, T, options))
+            arrays["lam"][:] = lam
+    model = (TrajectoryModel.trusted(**loops.stacked_fields(system, arrays, layout, frozen,
+                                                            moved), t=T, dt=0.0)
+             if frozen is not None else _assemble(system, arrays, layout, T, options))
     if rest:
-        model.info.update(rest_info(at_rest, family))
+        loops_info = model.info.get("loops") or {}
+        model.info.update(rest_info(at_rest, family, system, model.q,
+                                    loops_info.get("condition")))
     return model
 
 
@@ -470,30 +490,6 @@ def _assemble(system: System, arrays: Mapping[str, np.ndarray], layout: Layout,
         input_names=system.input_names,
         output_names=system.state_names if spec is None else spec.names,
         name=system.scene.name, info=info, dt=0.0)
-
-
-def _assemble_loops(system: System, arrays: Mapping[str, np.ndarray], layout: Layout,
-                    t: np.ndarray | None, frozen: loops.FrozenPartition,
-                    moved: np.ndarray) -> TrajectoryModel:
-    """A mechanism's stack (:mod:`pinlin.trajectory_loops`) as a TrajectoryModel."""
-    N, n, p, nu = layout.points, layout.n, layout.p, layout.nu
-    states = frozen.state_names(system)
-    C = arrays.get("C")
-    if C is None:
-        C = np.broadcast_to(np.eye(n), (N, n, n))
-    y = arrays.get("y")
-    if y is None:
-        y = np.broadcast_to(np.zeros(p), (N, p))
-    fields = {"A": arrays["A"], "B": arrays["B"], "C": C, "f0": arrays["f0"],
-              "q": arrays["q"], "v": arrays["vp"], "u": arrays["u"], "a": arrays["acc"],
-              "lam": arrays["lam"], "y": y}
-    for arr in fields.values():
-        arr.setflags(write=False)
-    return TrajectoryModel.trusted(
-        **fields, D=np.broadcast_to(np.zeros((p, nu)), (N, p, nu)), t=t, state_names=states,
-        input_names=system.input_names,
-        output_names=states if system.outputs is None else system.outputs.names,
-        name=system.scene.name, info=loops.info(system, frozen, arrays, moved), dt=0.0)
 
 
 __all__ = ["TrajectoryModel", "linearize_trajectory"]

@@ -10,6 +10,7 @@ from concurrent.futures import Executor
 import numpy as np
 import pinocchio as pin
 
+from .arrays import is_complex
 from .derivatives import BACKENDS, resolve_steps
 from .exceptions import ArgumentError, ShapeError
 from .system import System
@@ -23,6 +24,8 @@ def points(name: str, value: object, width: int, what: str, points: int | None,
     """``value`` as a C-ordered (N, width) float64 copy: finite, |x| <= limit, N rows (or
     ``points`` rows when given)."""
     expected = f"an (N, {width}) array ({what}, one row per point)"
+    if is_complex(value):
+        raise ArgumentError(name, f"expected real numbers ({what}), got complex entries")
     try:
         arr = np.array(value, dtype=float, order="C")
     except (TypeError, ValueError, OverflowError):
@@ -82,6 +85,8 @@ def check_normalized(system: System, q: np.ndarray) -> None:
 def times(t: object, points: int) -> np.ndarray | None:
     if t is None:
         return None
+    if is_complex(t):
+        raise ArgumentError("t", "expected real times [s], got complex entries")
     try:
         arr = np.array(t, dtype=float).reshape(-1) if np.ndim(t) <= 1 else None
     except (TypeError, ValueError, OverflowError):
@@ -149,8 +154,11 @@ def check_options(system: System, derivatives: object,
                                             "(loops, contacts or mimic couplings): "
                                             "pinlin.linearize at a given state of a "
                                             "constrained system gives no M, C_damp, K, Bu, so "
-                                            "its trajectory has none; leave second_order out "
-                                            "(A, B are in its independent coordinates)")
+                                            "its trajectory has none (nor, for now, a "
+                                            "schedule of its rest points: single calls "
+                                            "pinlin.linearize(scene, q=q[k]) give them); "
+                                            "leave second_order out (A, B are in its "
+                                            "independent coordinates)")
     return n_workers, n_chunk, bool(second_order)
 
 

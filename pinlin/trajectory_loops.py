@@ -172,11 +172,15 @@ def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | N
         part = partition(system, q, cons.jacobian(q))
     except PinlinError as exc:
         raise _at_point(exc, 0) from None
+    if not len(part.independent):
+        raise ModelError(f"trajectory point 0: scene '{system.scene.name}': the constraints hold "
+                         "every coordinate (no independent coordinate moves), so its models "
+                         "have no state; a single pinlin.linearize gives that (0 x 0) model")
     frozen = FrozenPartition.of(part)
     out[0], condition[0] = q, part.condition
     plan = lk.plan(system)
     J = None
-    if plan is not None and len(part.dependent):
+    if plan is not None and len(part.dependent) and plan.frames:
         J = _close_stacked(system, plan, Q, frozen, out, condition, report)
     else:
         _close_per_point(system, Q, frozen, out, condition, report)
@@ -229,7 +233,8 @@ def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
     """Points 1.. one by one: :func:`pinlin.assembly.assemble` from the previous point's
     dependent coordinates, the condition of Phi_d checked at each."""
     cons, model, N = system.constraints, system.model, len(Q)
-    rows, z, dep = frozen.rows, np.array(frozen.independent), np.array(frozen.dependent)
+    rows = np.array(frozen.rows, dtype=int)
+    z, dep = np.array(frozen.independent, dtype=int), np.array(frozen.dependent, dtype=int)
     for k in range(1, N):
         q = Q[k]
         if np.abs(cons.residual(q)).max(initial=0.0) > ASSEMBLY_TOL:
@@ -355,6 +360,29 @@ def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: 
             y[k] = model.operating_point.y
 
 
+def stacked_fields(system: System, arrays: Mapping[str, np.ndarray], layout,
+                   frozen: FrozenPartition, moved: np.ndarray) -> dict[str, Any]:
+    """The fields of a mechanism's :class:`pinlin.TrajectoryModel` (all but ``t`` and
+    ``dt``) from its stacked arrays (read-only; C and D broadcast where constant)."""
+    N, n, p, nu = layout.points, layout.n, layout.p, layout.nu
+    states = frozen.state_names(system)
+    C = arrays.get("C")
+    if C is None:
+        C = np.broadcast_to(np.eye(n), (N, n, n))
+    y = arrays.get("y")
+    if y is None:
+        y = np.broadcast_to(np.zeros(p), (N, p))
+    fields = {"A": arrays["A"], "B": arrays["B"], "C": C, "f0": arrays["f0"],
+              "q": arrays["q"], "v": arrays["vp"], "u": arrays["u"], "a": arrays["acc"],
+              "lam": arrays["lam"], "y": y}
+    for arr in fields.values():
+        arr.setflags(write=False)
+    return {**fields, "D": np.broadcast_to(np.zeros((p, nu)), (N, p, nu)),
+            "state_names": states, "input_names": system.input_names,
+            "output_names": states if system.outputs is None else system.outputs.names,
+            "name": system.scene.name, "info": info(system, frozen, arrays, moved)}
+
+
 def info(system: System, frozen: FrozenPartition, arrays: Mapping[str, np.ndarray],
          moved: np.ndarray) -> dict[str, Any]:
     """The metadata of a mechanism's trajectory model (module docstring)."""
@@ -375,4 +403,5 @@ def info(system: System, frozen: FrozenPartition, arrays: Mapping[str, np.ndarra
 
 
 __all__ = ["REFUSE_CONDITION", "REPORT_EVERY", "WARN_CONDITION", "FrozenPartition",
-           "close_loops", "fill", "first_pass", "info", "refuse", "second_pass"]
+           "close_loops", "fill", "first_pass", "info", "refuse", "second_pass",
+           "stacked_fields"]
