@@ -684,8 +684,9 @@ def test_outputs_never_replace_a_file_of_another_kind(args, how, capfd, tmp_path
 @pytest.mark.parametrize("suffix, content", [
     (".json", b'{"my": "settings"}\n'),
     (".npz", None),          # a user's own archive: a zip, but none of pinlin's arrays
+    (".npz", "names"),       # one that shares a name with pinlin's, and holds more
     (".mat", b"MATLAB 5.0 MAT-file, a user's own data" + bytes(100)),
-], ids=["json", "npz", "mat"])
+], ids=["json", "npz", "npz_sharing_names", "mat"])
 def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content, capfd,
                                                                 tmp_path):
     """Every JSON object starts with '{' and every .npz is a zip: for the data formats pinlin
@@ -693,6 +694,9 @@ def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content,
     target = tmp_path / f"mine{suffix}"
     if content is None:
         np.savez(target, x=np.ones(3))
+    elif content == "names":
+        np.savez(target, state_names=np.array(["x"]), A=np.ones((1, 1)), meta=np.array("{}"),
+                 important=np.ones(3))
     else:
         target.write_bytes(content)
     before = snapshot(tmp_path)

@@ -217,6 +217,20 @@ def test_bad_schedule_arguments_are_refused(kwargs, argument, words):
     assert info.value.argument == argument
 
 
+@pytest.mark.parametrize("call", [
+    lambda s: pinlin.linearize_trajectory(s, np.zeros((2, 6)) + 1j),
+    lambda s: pinlin.linearize_trajectory(s, np.zeros((2, 6)), np.zeros((2, 6)) + 0j,
+                                          np.zeros((2, 6))),
+    lambda s: pinlin.linearize_trajectory(s, np.zeros((2, 6)), t=np.array([0.0, 1.0]) + 0j),
+    lambda s: pinlin.linearize(s, q=np.zeros(6) + 1j),
+    lambda s: pinlin.linearize(s, v=np.zeros(6), u=np.zeros(6) + 0j),
+], ids=["trajectory_q", "trajectory_v", "trajectory_t", "linearize_q", "linearize_u"])
+def test_complex_numbers_are_refused_not_truncated(call):
+    """float() of a complex array drops the imaginary parts with a mere warning: refused."""
+    with pytest.raises(ArgumentError, match="got complex entries"):
+        call(pinlin.Scene.from_robot("ur5"))
+
+
 def test_a_schedule_needs_a_scene_that_solves_its_inputs():
     scene = scene_file("four_bar", operating_point={
         "q": {"crank": 1.0, "coupler": -0.6, "rocker": 1.6}, "independent": ["crank"],
