@@ -279,7 +279,7 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     if options.frozen is not None:
         from .trajectory_loops import fill as fill_loops
 
-        fill_loops(system, arrays, lo, hi, options.frozen)
+        fill_loops(system, arrays, lo, hi, options.frozen, options.derivatives, options.step)
         return
     if not batch_path(system, options):
         _fill_per_point(system, arrays, lo, hi, options)

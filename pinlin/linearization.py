@@ -249,8 +249,10 @@ def linearize(scene: Scene | System | str | Path, *,
         v, u: Velocity (nv) [rad/s or m/s] and inputs (nu) [N*m or N]: the state is taken as
             given (as with the scene's ``solve = "none"``; the one not passed is the scene's,
             else zero) and the model is affine, x' = f0 + A x + B u with f0 = [v0; a0]
-            (``model.f0``; x and u deviations from the state). Open chains, independent
-            formulation.
+            (``model.f0``; x and u deviations from the state). Open chains in the
+            independent formulation; mechanisms (fixed base, point loops, mimic couplings) in
+            the independent formulation (partitioned basis; analytic, fd3 or fd5 derivatives)
+            or the penalty formulation (analytic), loops closed and v0 projected.
         allow_non_equilibrium: Override the scene's ``operating_point.allow_non_equilibrium``.
         basis: Independent coordinates of a constrained system (independent formulation only):
             ``"partitioned"`` (the independent joints z, the default) or ``"orthonormal"`` (an
@@ -300,7 +302,7 @@ def linearize(scene: Scene | System | str | Path, *,
         refuse_unsupported(system, form.name, getattr(form, "basis", None), deriv.name)
         op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state)
         assert cp is not None
-        model = (linearize_moving(system, op, cp) if independent else
+        model = (linearize_moving(system, op, cp, **numeric) if independent else
                  linearize_moving_penalty(system, op, cp, alpha=form.alpha, mu=form.mu,
                                           omega=form.omega))
     elif state is not None:

@@ -110,7 +110,8 @@ class FrozenPartition:
 
 def refuse(system: System, derivatives: str) -> None:
     """What a mechanism's trajectory cannot do (what :func:`pinlin.linearize` cannot do at a
-    moving state: fd3/fd5, a floating base, weld loops and contacts).
+    moving state: a floating base, weld loops and contacts). With fd3/fd5 its points are
+    linearized one by one (:mod:`pinlin.formulations.moving_fd`).
 
     Raises:
         ModelError: naming the scene and what is not supported.
@@ -271,15 +272,16 @@ def _singular_message(system: System, frozen: FrozenPartition, k: int, cond: flo
 
 
 def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
-         frozen: FrozenPartition) -> None:
+         frozen: FrozenPartition, derivatives: str = "analytic", step: Any = None) -> None:
     """The models of points lo:hi (module docstring, pass 2) into ``arrays``
     (:class:`pinlin.batch.Layout` of a mechanism: inputs q (assembled), v, u, cond; results
-    A, B, f0, vp, acc, lam, dv and, with outputs, C and y).
+    A, B, f0, vp, acc, lam, dv and, with outputs, C and y); ``derivatives`` "fd3"/"fd5"
+    (``step``): numerical derivatives, point by point.
 
     Raises:
         PinlinError: from the model of a point, its message starting with the point's index.
     """
-    plan = lk.plan(system)
+    plan = lk.plan(system) if derivatives == "analytic" else None
     if plan is not None:
         for start in range(lo, hi, BLOCK):
             stop = min(hi, start + BLOCK)
@@ -288,7 +290,7 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
             except np.linalg.LinAlgError:  # a singular point: find it and say why
                 _fill_points(system, arrays, start, stop, frozen)
         return
-    _fill_points(system, arrays, lo, hi, frozen)
+    _fill_points(system, arrays, lo, hi, frozen, derivatives, step)
 
 
 def _fill_block(system: System, plan: lk.ClosurePlan, arrays: Mapping[str, np.ndarray],
@@ -333,7 +335,8 @@ class _State(NamedTuple):
 
 
 def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
-                 frozen: FrozenPartition) -> None:
+                 frozen: FrozenPartition, derivatives: str = "analytic",
+                 step: Any = None) -> None:
     """Points lo:hi one by one (:func:`~pinlin.formulations.motion.state_at`,
     :func:`~pinlin.formulations.motion.linearize_moving`)."""
     cons = system.constraints
@@ -344,7 +347,8 @@ def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: 
     for k in range(lo, hi):
         try:
             op, cp = state_at(system, Q[k], V[k], U[k], frozen.at(cond[k]), cons.jacobian(Q[k]))
-            model = linearize_moving(system, op, cp)
+            model = linearize_moving(system, op, cp, derivatives=derivatives, step=step,
+                                     estimate_error=False)
         except PinlinError as exc:
             raise _at_point(exc, k) from None
         A[k] = model.A

@@ -123,7 +123,7 @@ def test_inconsistent_velocity_is_projected_and_reported():
 @pytest.mark.parametrize("kwargs, words", [
     ({"formulation": "canonical"}, "not supported there yet"),
     ({"basis": "orthonormal"}, "not supported there yet"),
-    ({"derivatives": "fd5"}, "analytic derivatives only"),
+    ({"derivatives": "fd5", "formulation": "penalty"}, "independent formulation only"),
 ])
 def test_what_moving_mechanisms_do_not_support_yet(kwargs, words):
     with pytest.raises(pinlin.ModelError, match=words):

@@ -258,11 +258,17 @@ def test_a_trajectory_whose_loops_cannot_close_names_the_point(tmp_path):
         pinlin.linearize_trajectory(scene, Q, V, U)
 
 
-def test_velocities_are_projected_and_loops_need_analytic_derivatives():
+def test_velocities_are_projected_and_numerical_derivatives_go_point_by_point():
+    """fd3 along a mechanism's trajectory: each point is the single fd3 call at its state,
+    the same computation (bit for bit: the estimate, left out here, changes nothing in A)."""
     scene = pinlin.Scene.resolve("four_bar")
     Q, V, U, _ = sweep(scene, 4, 11)
-    with pytest.raises(pinlin.ModelError, match="analytic derivatives only"):
-        pinlin.linearize_trajectory(scene, Q, V, U, derivatives="fd3")
+    fd = pinlin.linearize_trajectory(scene, Q, V, U, derivatives="fd3")
+    for k in range(4):
+        single = pinlin.linearize(scene, q=fd.q[k], v=V[k], u=U[k], derivatives="fd3",
+                                  estimate_error=False)
+        np.testing.assert_array_equal(fd.A[k], single.A)
+        np.testing.assert_array_equal(fd.B[k], single.B)
     traj = pinlin.linearize_trajectory(scene, Q, V, U)
     assert min(traj.info["loops"]["velocity_correction"]) > 0.0
     assert pin.isNormalized(scene.system.model, traj.q[2])

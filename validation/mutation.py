@@ -126,6 +126,11 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    equilibrium = free[np.arange(N), worst] <= _tolerances(gravity)",
         "    equilibrium = np.ones(N, dtype=bool)",
         "a gain schedule of an open chain calls every point an equilibrium"),
+    "moving_fd_without_phi_qq_a": (
+        "pinlin/formulations/moving_fd.py",
+        "        return cons.jacobian(q)[rows] @ op.a + cons.bias_acceleration(q, op.v)[rows]",
+        "        return cons.bias_acceleration(q, op.v)[rows]",
+        "a mechanism's numerical model at a moving state drops Phi_qq[a0] from c_q"),
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),

@@ -143,15 +143,25 @@ def _constrained_dynamics(system, q, v, u, G, part) -> tuple[np.ndarray, np.ndar
     return sol[:nv], sol[nv:]
 
 
-def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> LinearModel:
+def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint, *,
+                     derivatives: str = "analytic", step=None,
+                     estimate_error: bool = True) -> LinearModel:
     """Independent-coordinate model of a constrained system at a moving state (module
-    docstring), analytic derivatives, partitioned basis."""
+    docstring), partitioned basis; ``derivatives`` "fd3"/"fd5": numerical derivatives
+    (:mod:`pinlin.formulations.moving_fd`, with ``step`` and ``estimate_error`` as for
+    :func:`pinlin.linearize`)."""
     cons = system.constraints
     part, G = cp.partition, cp.jacobian
     rows, z = part.rows, part.independent
     nv, nz = system.nv, len(z)
     plan = lk.plan(system)
-    if plan is not None:  # the stacked kernels with N = 1 (as a trajectory's points)
+    numeric: dict = {}
+    if derivatives != "analytic":
+        from .moving_fd import numerical_moving
+
+        A, B, f0, R, W, S, numeric = numerical_moving(system, op, part, G, derivatives, step,
+                                                      estimate_error)
+    elif plan is not None:  # the stacked kernels with N = 1 (as a trajectory's points)
         st = cp.stack  # the point's own stack (moving_point), else rebuilt from op
         if st is None:
             st = moving_batch.given(system, plan, op.q, op.v, op.a, op.lam)
@@ -169,13 +179,13 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint) -> Linear
         Cq, Cv = Cout[:, :nv], Cout[:, nv:]
         Cout = np.hstack([Cq @ R + Cv @ W, Cv @ R])
     info = {
-        "formulation": "independent", "derivatives": "analytic", "basis": "partitioned",
+        "formulation": "independent", "derivatives": derivatives, "basis": "partitioned",
         "effects": constrained_effects(system),
         "velocity_terms": True, "base": "free" if system.base_joint else "fixed",
         "notes": list(op.notes), "independent": coords,
         "constraint_rows": [cons.row_names[i] for i in rows],
         "dropped_rows": list(part.dropped), "R": R.tolist(),
-        "condition": {"constraint_jacobian": part.condition},
+        "condition": {"constraint_jacobian": part.condition}, **numeric,
     }
     # Built here with consistent shapes: the trusted constructor keeps the finite and
     # distinct-name checks and skips the rest (as linearize_reduced).
@@ -299,9 +309,11 @@ def _gamma_derivative(system, op: OperatingPoint) -> np.ndarray:
 
 def refuse_unsupported(system, formulation: str, basis: str | None, derivatives: str) -> None:
     """What this module cannot do yet, as a clear error."""
-    if derivatives != "analytic":
+    if derivatives != "analytic" and formulation != "independent":
         raise ModelError(f"scene '{system.scene.name}': a constrained system at a moving state "
-                         "is linearized with analytic derivatives only (fd3/fd5 not yet)")
+                         f"is linearized with numerical derivatives ({derivatives}) in the "
+                         "independent formulation only; the penalty formulation there takes "
+                         "analytic derivatives")
     if formulation == "canonical" or (basis not in (None, "partitioned")):
         raise ModelError(f"scene '{system.scene.name}': at a moving state a constrained system "
                          "is linearized in the independent formulation with the partitioned "
