@@ -49,7 +49,14 @@ SYSTEMS = (  # (scene or robot, formulation, what it exercises)
     ("delta", "independent", "three loops"),
     ("delta", "penalty", "three loops"),
     ("delta", "canonical", "three loops"),
+    ("four_bar", "independent, moving", "loop at a moving state (R_z, gamma terms)"),
+    ("slider_crank", "independent, moving", "loop at a moving state"),
+    ("five_bar", "independent, moving", "two-DoF loop at a moving state"),
+    ("delta", "independent, moving", "three loops at a moving state"),
 )
+#: Seed of the moving states: the scene's assembly, velocities in [-2, 2] rad/s or m/s (pinlin
+#: projects them onto the constraints) and inputs in [-1, 1] N*m or N.
+MOVING_SEED = 7
 
 
 def scene_for(name: str) -> pinlin.Scene:
@@ -68,11 +75,21 @@ def sweep() -> list[tuple[str, str, str, float, float, float]]:
         warnings.simplefilter("ignore", pinlin.AccuracyWarning)
         for name, formulation, _ in SYSTEMS:
             scene = scene_for(name)
-            exact = pinlin.linearize(scene, formulation=formulation)
+            state: dict = {}
+            if formulation.endswith(", moving"):
+                formulation = formulation.split(",")[0]
+                rng = np.random.default_rng(MOVING_SEED)
+                system = scene.system
+                state = {"q": pinlin.operating_point(scene).q,
+                         "v": rng.uniform(-2.0, 2.0, system.nv),
+                         "u": rng.uniform(-1.0, 1.0, len(system.actuated))}
+            exact = pinlin.linearize(scene, formulation=formulation, **state)
+            if state:
+                formulation += ", moving"
             for backend in ("fd3", "fd5"):
                 for h in STEPS:
-                    model = pinlin.linearize(scene, formulation=formulation,
-                                             derivatives=backend, step=h)
+                    model = pinlin.linearize(scene, formulation=formulation.split(",")[0],
+                                             derivatives=backend, step=h, **state)
                     true = float(np.abs(model.A - exact.A).max() / np.abs(exact.A).max())
                     rows.append((name, formulation, backend, h, true,
                                  float(model.info["error_estimate"])))
