@@ -47,7 +47,7 @@ from .assembly import (
     projection,
 )
 from .contacts import statics_notes
-from .exceptions import EquilibriumError, SceneError
+from .exceptions import AssemblyError, EquilibriumError, SceneError
 from .operating_point import OperatingPoint, residual_tolerance
 
 
@@ -115,12 +115,21 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
             q0, jac = found
     if jac is None:
         start = cons.residual_and_jacobian(q_guess) if cons else None
-        # conditioning is judged once assembled
-        part = partition(system, q_guess, None if start is None else start[1], check=False)
-        if cons:
-            q0, jac = assemble_with_jacobian(system, q_guess, part.independent, start=start)
+        part = None
+        if cons and spec.independent:  # the scene's z: no partition of the guess needed
+            try:
+                q0, jac = assemble_with_jacobian(system, q_guess, named_independent(system)[0],
+                                                 start=start)
+            except AssemblyError:  # a z list of the wrong size says so, not Newton
+                partition(system, q_guess, start[1], check=False)
+                raise
         else:
-            q0 = q_guess
+            # conditioning is judged once assembled
+            part = partition(system, q_guess, None if start is None else start[1], check=False)
+            if cons:
+                q0, jac = assemble_with_jacobian(system, q_guess, part.independent, start=start)
+            else:
+                q0 = q_guess
     else:
         part = None
     if spec.solve == "positions":
