@@ -231,6 +231,9 @@ class Scene:
                 value (the message names the file and the field).
         """
         path = path_argument("path", path)
+        if not path.suffix and not path.exists() and str(path) in bundled_scenes():
+            raise SceneError(path, None, f"scene file not found; '{path}' is a bundled scene: "
+                                         f"pinlin.Scene.resolve('{path}') loads it")
         data = read_toml(path, lambda shortened: _parse_scene(shortened, path))
         return cls.from_dict(data, source=path)
 

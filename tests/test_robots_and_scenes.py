@@ -135,3 +135,13 @@ def test_every_loadable_robot_linearizes_or_names_its_massless_joint():
         linearized += 1
     assert linearized >= 60
     assert "icub" in refused
+
+
+def test_loading_a_bundled_name_as_a_file_says_how_to_load_it(tmp_path, monkeypatch):
+    """``Scene.load`` reads files; given a bundled scene's name (no such file here) it says
+    that ``Scene.resolve`` takes names, instead of only "not found"."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(pinlin.SceneError, match=r"bundled scene: pinlin.Scene.resolve"):
+        pinlin.Scene.load("four_bar")
+    with pytest.raises(pinlin.SceneError, match="scene file not found$"):
+        pinlin.Scene.load("no_such_scene")
