@@ -326,16 +326,17 @@ costs, from Python, only Pinocchio calls: assembly (:mod:`pinlin.trajectory_asse
 closure check of all given points from frame positions, then per point Newton from a start
 predicted along the manifold's tangent, about 3 kinematics passes of one
 ``computeJointJacobians`` and a frame Jacobian per closure frame each, and a LAPACK ``gesv``
-per step), then ``computeJointJacobians`` + F frame Jacobians, ``crba``,
+per step; the frame Jacobians of its last pass are kept for the model), then ``crba``,
 ``nonLinearEffects`` and ``computeRNEADerivatives`` (:mod:`pinlin.formulations.moving_batch`).
 Everything else runs on stacks of 64 points: the projection, gamma, Phi_qq[v, .],
 Phi_qq[a, .], the geometric stiffness and d gamma / dq *analytically* from the frame
 Jacobians (:mod:`pinlin.loop_kernels`; formerly 4 nv evaluations of gamma by five-point
 differences), the two KKT solves, R, W and A, B. What is left is mostly the serial assembly
 (about half of a point: 3-4 kinematics passes and their small numpy calls, 20-25 us each for
-the delta's six closure frames) and the per-point frame outputs; a Newton that reuses the
-final Jacobian in the model pass, and the frame positions read from one ``data.J`` access
-instead of F calls, would take the next step toward 2x."""
+the delta's six closure frames) and the per-point frame outputs (one kinematics pass more
+each). The Newton's final Jacobians now serve the model pass; frame positions read from one
+``data.J`` access instead of F calls, and the outputs' frames taken in the assembly's last
+pass, would be the next steps toward 2x."""
 
 
 NOTES = """## Reading these figures
