@@ -313,13 +313,14 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
     an open chain comes from one ``pin.computeABADerivatives`` per point written straight
     into the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize` per point.
 
-    A mechanism (loops, mimic couplings; analytic derivatives, fixed base, point loops) is
-    assembled point by point, each from the one before where q[k] does not close its loops,
-    its velocities projected onto the nullspace of Phi_q, and every point is linearized in
-    the independent coordinates chosen at point 0 (:mod:`pinlin.trajectory_loops`): point k
-    is what :func:`pinlin.linearize` gives at ``q=model.q[k], v=v[k], u=u[k]`` (the
-    assembled configuration) whenever that call chooses the same coordinates (always when
-    the scene names them).
+    A mechanism (loops, mimic couplings, a fixed base's contacts; fixed base, point loops;
+    fd3/fd5 point by point) is assembled point by point, each from the one before where q[k]
+    does not close its loops, its velocities projected onto the nullspace of Phi_q, and
+    every point is linearized in the independent coordinates chosen at point 0
+    (:mod:`pinlin.trajectory_loops`): point k is what :func:`pinlin.linearize` gives at
+    ``q=model.q[k], v=v[k], u=u[k]`` (the assembled configuration) whenever that call chooses
+    the same coordinates (always when the scene names them). Contacts stay anchored where
+    the scene's posture puts their frames, for every point: a moving trajectory holds them.
 
     Without ``v`` and ``u`` the points are a *gain schedule* of rest points: point k is the
     model :func:`pinlin.linearize` gives at ``q=q[k]`` (``solve = "inputs"``: at rest, the
