@@ -245,25 +245,28 @@ def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray) -> dict | 
     return {"point": k, "change": float(change)}
 
 
-def needs_single_calls(system: System, derivatives: str) -> bool:
+def needs_single_calls(system: System, derivatives: str, second_order: bool = False) -> bool:
     """Whether a schedule of ``system`` is linearized point by point with single static calls
     (:func:`single_calls`): contacts (anchored where each configuration puts their frames, as
     ``linearize(scene, q=q[k])`` anchors them) and what the stacked mechanism path does not
-    cover (weld loops, a floating base, numerical derivatives of a mechanism)."""
+    cover (weld loops, a floating base, a mechanism's numerical derivatives or second-order
+    matrices)."""
     cons = system.constraints
     if not cons:
         return False
     return bool(cons.contacts) or cons.has_welds or system.base_joint is not None \
-        or derivatives != "analytic"
+        or derivatives != "analytic" or second_order
 
 
 def single_calls(system: System, Q: np.ndarray, *, derivatives: str, step: object,
                  allow: bool, parallel: bool = False,
-                 progress: Callable[[int, int], None] | None = None) -> dict:
+                 progress: Callable[[int, int], None] | None = None,
+                 second_order: bool = False) -> dict:
     """A schedule by :func:`pinlin.linearize` at each ``q=Q[k]`` (:func:`needs_single_calls`):
     every point assembled from its own configuration, its contacts anchored there, its
     statics solved. Returns the fields of a :class:`pinlin.TrajectoryModel` (stacked,
-    read-only) but ``t``.
+    read-only) but ``t`` and ``dt``; with ``second_order``, each point's M, C_damp, K, Bu
+    (a mechanism's: in its independent coordinates, nz x nz).
 
     Raises:
         ArgumentError: ``parallel`` (workers or an executor were asked for): this path runs
@@ -311,6 +314,8 @@ def single_calls(system: System, Q: np.ndarray, *, derivatives: str, step: objec
         "y": np.stack([op.y for op in ops]),
         "lam": np.stack([op.lam for op in ops]) if first.operating_point.lam is not None
         else None}
+    for key in ("M", "C_damp", "K", "Bu"):
+        fields[key] = np.stack([getattr(m, key) for m in models]) if second_order else None
     for arr in fields.values():
         if arr is not None:
             arr.setflags(write=False)

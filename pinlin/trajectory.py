@@ -117,11 +117,13 @@ class TrajectoryModel:
         n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
         N = np.shape(self.A)[0] if np.ndim(self.A) == 3 else -1
         nv = np.shape(self.v)[-1] if np.ndim(self.v) == 2 else -1
+        half = n // 2  # second-order: the coordinates of the states (a mechanism's z)
         shapes = {"A": (N, n, n), "B": (N, n, m), "C": (N, p, n), "D": (N, p, m),
                   "f0": (N, n), "v": (N, nv), "u": (N, m), "a": (N, nv), "t": (N,),
                   "y": (N, p), "q": (N, np.shape(self.q)[-1] if np.ndim(self.q) == 2 else -1),
                   "lam": (N, np.shape(self.lam)[-1] if np.ndim(self.lam) == 2 else -1),
-                  "M": (N, nv, nv), "C_damp": (N, nv, nv), "K": (N, nv, nv), "Bu": (N, nv, m)}
+                  "M": (N, half, half), "C_damp": (N, half, half), "K": (N, half, half),
+                  "Bu": (N, half, m)}
         given = [key for key in _SECOND_ORDER if getattr(self, key) is not None]
         if given and len(given) < len(_SECOND_ORDER):
             raise ArgumentError(given[0], "the second-order matrices M, C_damp, K, Bu come "
@@ -359,8 +361,9 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
         second_order: Also store M, C_damp, K (N, nv, nv) and Bu of every point, so that
             ``at(k)`` carries the second-order matrices :func:`pinlin.linearize` gives there
             (open chains; on the batch path one ``pin.crba`` more per point,
-            :mod:`pinlin.batch`). Mechanisms refuse it: a single model at a moving state of a
-            mechanism has none.
+            :mod:`pinlin.batch`). A mechanism's schedule of rest points has them in its
+            independent coordinates (nz x nz; by single calls); its given-state trajectory
+            refuses them: a single model at a moving state of a mechanism has none.
         allow_non_equilibrium: A schedule of rest points only: accept open-chain points that
             the inputs cannot hold (their models describe the motion about (q, v = 0)); None:
             the scene's ``operating_point.allow_non_equilibrium``.
@@ -385,10 +388,11 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
             (:func:`pinlin.set_memory_limit`).
     """
     system = _system(scene)
-    workers, chunk, second_order = check_options(system, derivatives, step, workers, chunk,
-                                                executor, progress, second_order)
-    nu = len(system.actuated)
     allow = rest_options(system, v, u, allow_non_equilibrium)
+    workers, chunk, second_order = check_options(system, derivatives, step, workers, chunk,
+                                                executor, progress, second_order,
+                                                allow is not None)
+    nu = len(system.actuated)
     Q = points("q", q, system.nq, "configurations", None, POSITION_LIMIT)
     N = Q.shape[0]
     rest = allow is not None  # a schedule of rest points: v = 0, u solved (rest_schedule)
@@ -397,11 +401,11 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
     U = np.zeros((N, nu)) if rest else points("u", u, nu, "inputs", N, COEFFICIENT_LIMIT)
     check_normalized(system, Q)
     T = times(t, N)
-    if rest and needs_single_calls(system, derivatives):  # point by point, in this process
+    if rest and needs_single_calls(system, derivatives, second_order):  # in this process
         return TrajectoryModel.trusted(**schedule_by_single_calls(
             system, Q, derivatives=derivatives, step=step, allow=bool(allow),
-            parallel=workers > 1 or executor is not None, progress=progress),
-            t=T, dt=0.0, **dict.fromkeys(_SECOND_ORDER))
+            parallel=workers > 1 or executor is not None, progress=progress,
+            second_order=second_order), t=T, dt=0.0)
 
     inputs = {"q": Q, "v": V, "u": U}
     frozen = moved = None

@@ -266,10 +266,10 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
     if "t" in fields:
         fields["t"] = fields["t"].reshape(-1)
     n, m, p = (len(fields[k]) for k in _NAMES)
-    nv = fields["v"].shape[-1] if fields["v"].ndim == 2 else 0
+    half = n // 2  # second-order matrices: the coordinates of the states
     for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (-1, p, m)),
-                       ("Bu", (1, nv, m)), ("M", (N, nv, nv)), ("C_damp", (N, nv, nv)),
-                       ("K", (N, nv, nv))):
+                       ("Bu", (1, half, m)), ("M", (N, half, half)),
+                       ("C_damp", (N, half, half)), ("K", (N, half, half))):
         if key in fields and fields[key].size == 0:  # MATLAB keeps no shape for empties
             fields[key] = fields[key].reshape(shape)
     for key in _CONSTANT:

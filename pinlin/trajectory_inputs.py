@@ -116,9 +116,10 @@ def positive_int(name: str, value: object, allow_none: bool = False) -> int | No
 def check_options(system: System, derivatives: object,
                   step: float | Mapping[str, float] | None, workers: object, chunk: object,
                   executor: object, progress: Callable[[int, int], None] | None,
-                  second_order: object) -> tuple[int, int | None, bool]:
+                  second_order: object, rest: bool = False) -> tuple[int, int | None, bool]:
     """The options of :func:`pinlin.linearize_trajectory` checked: (workers, chunk,
-    second_order).
+    second_order); ``rest``: a schedule of rest points (a mechanism's single static models
+    do have second-order matrices).
 
     Raises:
         ArgumentError: naming the option: an unknown backend, a step with analytic
@@ -149,16 +150,15 @@ def check_options(system: System, derivatives: object,
         raise ArgumentError("progress", "expected a function progress(done, total)")
     if not isinstance(second_order, bool | np.bool_):
         raise ArgumentError("second_order", f"expected True or False, got {second_order!r}")
-    if second_order and system.constraints:
+    if second_order and system.constraints and not rest:
         raise ArgumentError("second_order", f"scene '{system.scene.name}' has constraints "
                                             "(loops, contacts or mimic couplings): "
                                             "pinlin.linearize at a given state of a "
                                             "constrained system gives no M, C_damp, K, Bu, so "
-                                            "its trajectory has none (nor, for now, a "
-                                            "schedule of its rest points: single calls "
-                                            "pinlin.linearize(scene, q=q[k]) give them); "
-                                            "leave second_order out (A, B are in its "
-                                            "independent coordinates)")
+                                            "its trajectory has none (a schedule of its rest "
+                                            "points, v and u left out, has them); leave "
+                                            "second_order out (A, B are in its independent "
+                                            "coordinates)")
     return n_workers, n_chunk, bool(second_order)
 
 

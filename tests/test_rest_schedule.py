@@ -343,6 +343,28 @@ def test_standing_robots_weld_loops_and_numerical_derivatives_schedule_by_single
         np.testing.assert_array_equal(traj.A[k], single.A)
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".mat"])
+def test_a_mechanism_schedule_carries_its_second_order_matrices(suffix, tmp_path):
+    """``second_order=True`` on a mechanism's schedule: each point's M, C_damp, K, Bu in its
+    independent coordinates, those of the single static call (the same computation, point
+    by point), so that the symmetric modal path applies; they survive a file."""
+    scene = pinlin.Scene.load(URDF_DIR / "delta.toml")
+    Q = schedule(scene, 3, 0.2, 13)
+    traj = pinlin.linearize_trajectory(scene, Q, second_order=True)
+    nz = len(traj.state_names) // 2
+    assert traj.M.shape == (3, nz, nz) and traj.Bu.shape == (3, nz, 3)
+    for k in range(3):
+        single = pinlin.linearize(scene, q=Q[k])
+        for key in ("M", "C_damp", "K", "Bu", "A"):
+            np.testing.assert_array_equal(getattr(traj.at(k), key), getattr(single, key))
+    assert pinlin.modal(traj.at(1)).method == "symmetric"
+    back = pinlin.TrajectoryModel.load(traj.save(tmp_path / f"schedule{suffix}"))
+    np.testing.assert_array_equal(back.K, traj.K)
+    with pytest.raises(ArgumentError, match="a schedule of its rest points"):
+        pinlin.linearize_trajectory(scene, Q, np.zeros((3, 12)), np.zeros((3, 3)),
+                                    second_order=True)
+
+
 def test_a_mimic_coupling_without_loops_follows_the_schedule(tmp_path):
     """A double pendulum whose elbow mimics the shoulder (no closure frame): each point is
     assembled from the one before and equals the single call."""
