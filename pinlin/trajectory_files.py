@@ -30,6 +30,7 @@ import csv
 import difflib
 import io
 import json
+import math
 import zipfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -176,6 +177,9 @@ def _read_csv_states(path: Path, raw: bytes, system: System
             except ValueError:
                 raise ModelFileError(path, f"line {number}, column '{header[col]}': "
                                            f"{cell.strip()!r} is not a number") from None
+            if not math.isfinite(values[row, col]):
+                raise ModelFileError(path, f"line {number}, column '{header[col]}': "
+                                           f"{cell.strip()!r} is not a finite number")
     index = {name: i for i, name in enumerate(header)}
 
     def columns(names: list[str]) -> np.ndarray:

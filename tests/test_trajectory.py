@@ -503,14 +503,17 @@ def test_cli_refuses_bad_csv_headers(edit, words, tmp_path, capfd):
     ("q:a,q:b\n", "unknown column 'q:a'"),
     ("{header}\n1,2\n", "line 3: 2 values, the header names 18 columns"),
     ("{header}\n{bad}\n", "line 3, column 'q:shoulder_pan_joint': 'x' is not a number"),
+    ("{header}\n{nan}\n", "line 3, column 'q:shoulder_pan_joint': 'nan' is not a finite "
+                           "number"),
     ("{header}\n", "no data"),
 ])
 def test_cli_refuses_bad_csv_rows(text, words, tmp_path, capfd):
     qc, vc, uc = pinlin.trajectory_columns(pinlin.Scene.from_robot("ur5").system)
     header = ",".join(qc + vc + uc)
     bad = ",".join(["x"] + ["0"] * 17)
+    nan = ",".join(["nan"] + ["0"] * 17)
     path = tmp_path / "traj.csv"
-    path.write_text("# comment\n" + text.format(header=header, bad=bad))
+    path.write_text("# comment\n" + text.format(header=header, bad=bad, nan=nan))
     assert main(["trajectory", "ur5", str(path), "--out", str(tmp_path / "m.npz")]) == 2
     err = capfd.readouterr().err
     assert words in err and err.count("\n") == 1
