@@ -245,6 +245,18 @@ def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray) -> dict | 
     return {"point": k, "change": float(change)}
 
 
+def _reissue(warned: dict) -> None:
+    """Each category of warning the single calls gave, once: the first point's, naming it and
+    how many more points warned so."""
+    for first, message, count in warned.values():
+        again = type(message).__new__(type(message))  # its own fields, not its __init__'s
+        again.__dict__.update(message.__dict__)
+        more = f" (and {count - 1} more point{'s' if count > 2 else ''})" if count > 1 else ""
+        text = str(message.args[0]) if message.args else str(message)
+        again.args = (f"trajectory point {first}{more}: {text}", *message.args[1:])
+        warnings.warn(again, stacklevel=4)
+
+
 def needs_single_calls(system: System, derivatives: str, second_order: bool = False) -> bool:
     """Whether a schedule of ``system`` is linearized point by point with single static calls
     (:func:`single_calls`): contacts (anchored where each configuration puts their frames, as
@@ -287,12 +299,18 @@ def single_calls(system: System, Q: np.ndarray, *, derivatives: str, step: objec
                  f"models of {len(Q)} points", "A, B, f0 stacked, 8 bytes a number")
 
     models = []
+    warned: dict[type, tuple[int, Warning, int]] = {}  # category: (first point, warning, count)
     for k, q in enumerate(Q):
         try:
-            model = linearize(system, q=q, derivatives=derivatives, step=step,
-                              allow_non_equilibrium=allow, estimate_error=False)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                model = linearize(system, q=q, derivatives=derivatives, step=step,
+                                  allow_non_equilibrium=allow, estimate_error=False)
         except PinlinError as exc:
             raise at_point(exc, k) from None
+        for record in caught:
+            first, message, count = warned.get(record.category, (k, record.message, 0))
+            warned[record.category] = (first, message, count + 1)
         if models and model.state_names != models[0].state_names:
             raise ModelError(
                 f"trajectory point {k}: scene '{system.scene.name}': pinlin chose other "
@@ -302,6 +320,7 @@ def single_calls(system: System, Q: np.ndarray, *, derivatives: str, step: objec
         models.append(model)
         if progress is not None:
             progress(k + 1, len(Q))
+    _reissue(warned)
     first = models[0]
     ops = [m.operating_point for m in models]
     n = first.A.shape[0]

@@ -314,8 +314,12 @@ def test_contacts_are_anchored_at_each_posture_as_single_calls_anchor_them():
     q0 = pinlin.operating_point(scene).q
     Q = np.tile(q0, (3, 1))
     Q[:, 1] += [0.0, 0.1, 0.2]
-    with pytest.warns(pinlin.ContactWarning, match="pulls"):  # as each single call warns
+    with warnings.catch_warnings(record=True) as caught:  # as the single calls warn, once
+        warnings.simplefilter("always")
         traj = pinlin.linearize_trajectory(scene, Q)
+    assert [str(w.message)[:47] for w in caught] == [
+        "trajectory point 1 (and 1 more point): scene 'u"]
+    assert "pulls" in str(caught[0].message) and caught[0].filename == __file__
     np.testing.assert_allclose(traj.q, Q, rtol=0, atol=1e-12)
     assert traj.info["path"] == "per point (single calls at rest)"
     with warnings.catch_warnings():
