@@ -415,7 +415,8 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     tra.add_argument("--discretization", choices=("zoh", "euler"), default=None,
                      help="with --dt: zero-order hold (default) or semi-implicit Euler")
     tra.add_argument("--second-order", action="store_true",
-                     help="also store M, C_damp, K (and Bu) of every point (open chains)")
+                     help="also store M, C_damp, K (and Bu) of every point (open chains, and "
+                          "a mechanism's schedule of rest points)")
     tra.add_argument("--allow-non-equilibrium", action="store_true",
                      help="a schedule of rest points: keep points the inputs cannot hold "
                           "(models of the falling state)")

@@ -79,8 +79,9 @@ def resolve_steps(backend: str, step: float | Mapping[str, float] | None) -> dic
         if key not in STEP_KEYS:
             raise ArgumentError("step", f"unknown step key {key!r}; expected "
                                         f"{', '.join(STEP_KEYS)}")
-        try:
-            h = float(value) if not isinstance(value, bool | str) else float("nan")
+        try:  # complex numbers too: float() would drop their imaginary part
+            h = float(value) if not isinstance(value, bool | str | complex | np.complexfloating) \
+                else float("nan")
         except (TypeError, ValueError, OverflowError):
             h = float("nan")
         if not (np.isfinite(h) and h > 0):

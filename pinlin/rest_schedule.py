@@ -25,6 +25,7 @@ f the generalized gravity (and centrifugal force in a rotating scene) minus the 
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Callable, Sequence
 
@@ -245,12 +246,44 @@ def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray) -> dict | 
     return {"point": k, "change": float(change)}
 
 
+def _single_call(system: System, k: int, q: np.ndarray, models: list, warned: dict,
+                 derivatives: str, step: object, allow: bool):
+    """``linearize(system, q=q)`` as point k of a schedule (:func:`single_calls`), its
+    warnings recorded in ``warned``: (category, text without its numbers) -> (first point,
+    warning, points)."""
+    from .linearization import linearize
+
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = linearize(system, q=q, derivatives=derivatives, step=step,
+                              allow_non_equilibrium=allow, estimate_error=False)
+    except PinlinError as exc:
+        raise at_point(exc, k) from None
+    finally:
+        for record in caught:
+            key = (record.category, _NUMBER.sub("#", str(record.message)))
+            warned.setdefault(key, (k, record.message, set()))[2].add(k)
+    if models and model.state_names != models[0].state_names:
+        raise ModelError(
+            f"trajectory point {k}: scene '{system.scene.name}': pinlin chose other "
+            f"independent coordinates here ({', '.join(model.info['independent'])}) than at "
+            f"point 0 ({', '.join(models[0].info['independent'])}); every point of a "
+            "schedule has the same states: name them in operating_point.independent")
+    return model
+
+
+#: Numbers in a warning's text: one warning of the same text at several points, numbers aside.
+_NUMBER = re.compile(r"[-+]?\d+(\.\d*)?([eE][-+]?\d+)?")
+
+
 def _reissue(warned: dict) -> None:
-    """Each category of warning the single calls gave, once: the first point's, naming it and
-    how many more points warned so."""
-    for first, message, count in warned.values():
+    """Each warning the single calls gave (its text, numbers aside), once: the first point's,
+    naming it and how many more points warned so."""
+    for first, message, points in warned.values():
         again = type(message).__new__(type(message))  # its own fields, not its __init__'s
         again.__dict__.update(message.__dict__)
+        count = len(points)
         more = f" (and {count - 1} more point{'s' if count > 2 else ''})" if count > 1 else ""
         text = str(message.args[0]) if message.args else str(message)
         again.args = (f"trajectory point {first}{more}: {text}", *message.args[1:])
@@ -288,39 +321,26 @@ def single_calls(system: System, Q: np.ndarray, *, derivatives: str, step: objec
             ModelError where a point's independent coordinates (chosen by pinlin) differ from
             point 0's: every point of a stack has the same states.
     """
-    from .linearization import linearize
 
     if parallel:
         raise ArgumentError("workers", f"scene '{system.scene.name}' (contacts, weld loops, a "
-                                       "floating base or numerical derivatives of a mechanism) "
-                                       "has its schedule of rest points linearized point by "
-                                       "point in this process; leave out workers and executor")
-    check_memory(Layout.of(system, len(Q)).offsets()[1], f"scene '{system.scene.name}': the "
-                 f"models of {len(Q)} points", "A, B, f0 stacked, 8 bytes a number")
+                                       "floating base, or a mechanism's numerical derivatives "
+                                       "or second-order matrices) has its schedule of rest "
+                                       "points linearized point by point in this process; "
+                                       "leave out workers and executor")
+    check_memory(Layout.of(system, len(Q), second_order=second_order).offsets()[1],
+                 f"scene '{system.scene.name}': the models of {len(Q)} points",
+                 "A, B, f0 (and M, C_damp, K) stacked, 8 bytes a number")
 
-    models = []
-    warned: dict[type, tuple[int, Warning, int]] = {}  # category: (first point, warning, count)
-    for k, q in enumerate(Q):
-        try:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                model = linearize(system, q=q, derivatives=derivatives, step=step,
-                                  allow_non_equilibrium=allow, estimate_error=False)
-        except PinlinError as exc:
-            raise at_point(exc, k) from None
-        for record in caught:
-            first, message, count = warned.get(record.category, (k, record.message, 0))
-            warned[record.category] = (first, message, count + 1)
-        if models and model.state_names != models[0].state_names:
-            raise ModelError(
-                f"trajectory point {k}: scene '{system.scene.name}': pinlin chose other "
-                f"independent coordinates here ({', '.join(model.info['independent'])}) than at "
-                f"point 0 ({', '.join(models[0].info['independent'])}); every point of a "
-                "schedule has the same states: name them in operating_point.independent")
-        models.append(model)
-        if progress is not None:
-            progress(k + 1, len(Q))
-    _reissue(warned)
+    models: list = []
+    warned: dict[tuple[type, str], tuple[int, Warning, set[int]]] = {}
+    try:
+        for k, q in enumerate(Q):
+            models.append(_single_call(system, k, q, models, warned, derivatives, step, allow))
+            if progress is not None:
+                progress(k + 1, len(Q))
+    finally:  # what the points before a refused one warned of is said too
+        _reissue(warned)
     first = models[0]
     ops = [m.operating_point for m in models]
     n = first.A.shape[0]

@@ -73,11 +73,12 @@ class TrajectoryModel:
             every point; its ``q`` are the assembled configurations, ``v`` the velocities
             projected onto the constraint nullspace, ``a`` the accelerations of all nv
             coordinates.
-        M, C_damp, K: (N, nv, nv) mass [kg, kg*m^2], velocity (damping and gyroscopic) and
-            stiffness matrices of every point, Bu: (N, nv, m) input matrix (one matrix,
-            broadcast): the second-order model M dq'' + C_damp dq' + K dq = Bu du of
-            :class:`LinearModel`, with ``linearize_trajectory(..., second_order=True)``
-            (open chains); else None.
+        M, C_damp, K: (N, n/2, n/2) mass [kg, kg*m^2], velocity (damping and gyroscopic)
+            and stiffness matrices of every point, Bu: (N, n/2, m) input matrix: the
+            second-order model M dq'' + C_damp dq' + K dq = Bu du of :class:`LinearModel`,
+            with ``linearize_trajectory(..., second_order=True)`` (open chains: n/2 = nv, Bu
+            one matrix broadcast; a mechanism's schedule of rest points: its independent
+            coordinates); else None.
     """
 
     A: np.ndarray
@@ -448,7 +449,8 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
             arrays["acc"][at_rest] = 0.0
             arrays["lam"][:] = lam
     model = (TrajectoryModel.trusted(**loops.stacked_fields(system, arrays, layout, frozen,
-                                                            moved), t=T, dt=0.0)
+                                                            moved, derivatives, step),
+                                     t=T, dt=0.0)
              if frozen is not None else _assemble(system, arrays, layout, T, options))
     if rest:
         loops_info = model.info.get("loops") or {}

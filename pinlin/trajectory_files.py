@@ -16,7 +16,7 @@
 
 **Models** (:meth:`TrajectoryModel.save`): ``.npz`` or MATLAB ``.mat`` holding ``A``, ``B``,
 ``C``, ``D``, ``f0``, ``q``, ``v``, ``u``, ``a``, ``y``, ``t`` when there are times and
-``lam`` for a mechanism, ``M``, ``C_damp``, ``K`` (N, nv, nv) and ``Bu`` for a model with
+``lam`` for a mechanism, ``M``, ``C_damp``, ``K`` (N, n/2, n/2) and ``Bu`` for a model with
 second-order matrices (``second_order=True``), the
 signal names and a JSON ``meta`` (kind, name, info, dt). C, D, y and Bu that do not vary are
 stored once, with a first axis of 1. Written atomically; read as
@@ -271,7 +271,7 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
         fields["t"] = fields["t"].reshape(-1)
     n, m, p = (len(fields[k]) for k in _NAMES)
     half = n // 2  # second-order matrices: the coordinates of the states
-    for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (-1, p, m)),
+    for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (1, p, m)),
                        ("Bu", (1, half, m)), ("M", (N, half, half)),
                        ("C_damp", (N, half, half)), ("K", (N, half, half))):
         if key in fields and fields[key].size == 0:  # MATLAB keeps no shape for empties

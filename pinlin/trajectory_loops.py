@@ -52,6 +52,7 @@ from . import loop_kernels as lk
 from . import trajectory_assembly
 from .assembly import ASSEMBLY_TOL, Partition, assemble, partition
 from .conditioning import AccuracyWarning
+from .derivatives import resolve_steps
 from .exceptions import ModelError, PinlinError
 from .formulations import moving_batch
 from .formulations.constrained import constrained_effects
@@ -365,7 +366,8 @@ def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: 
 
 
 def stacked_fields(system: System, arrays: Mapping[str, np.ndarray], layout,
-                   frozen: FrozenPartition, moved: np.ndarray) -> dict[str, Any]:
+                   frozen: FrozenPartition, moved: np.ndarray, derivatives: str = "analytic",
+                   step: Any = None) -> dict[str, Any]:
     """The fields of a mechanism's :class:`pinlin.TrajectoryModel` (all but ``t`` and
     ``dt``) from its stacked arrays (read-only; C and D broadcast where constant)."""
     N, n, p, nu = layout.points, layout.n, layout.p, layout.nu
@@ -384,15 +386,20 @@ def stacked_fields(system: System, arrays: Mapping[str, np.ndarray], layout,
     return {**fields, "D": np.broadcast_to(np.zeros((p, nu)), (N, p, nu)),
             "state_names": states, "input_names": system.input_names,
             "output_names": states if system.outputs is None else system.outputs.names,
-            "name": system.scene.name, "info": info(system, frozen, arrays, moved)}
+            "name": system.scene.name,
+            "info": info(system, frozen, arrays, moved, derivatives, step)}
 
 
 def info(system: System, frozen: FrozenPartition, arrays: Mapping[str, np.ndarray],
-         moved: np.ndarray) -> dict[str, Any]:
-    """The metadata of a mechanism's trajectory model (module docstring)."""
+         moved: np.ndarray, derivatives: str = "analytic", step: Any = None
+         ) -> dict[str, Any]:
+    """The metadata of a mechanism's trajectory model (module docstring); with fd3/fd5, the
+    backend and its steps, as the open chains' record them."""
     cons = system.constraints
+    extra = {} if derivatives == "analytic" else {"step": resolve_steps(derivatives, step)}
     return {
-        "formulation": "independent", "derivatives": "analytic", "basis": "partitioned",
+        **extra,
+        "formulation": "independent", "derivatives": derivatives, "basis": "partitioned",
         "effects": constrained_effects(system), "velocity_terms": True,
         "base": "free" if system.base_joint else "fixed", "points": int(len(moved)),
         "path": "per point (loops)",

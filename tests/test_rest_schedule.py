@@ -329,7 +329,37 @@ def test_contacts_are_anchored_at_each_posture_as_single_calls_anchor_them():
         pinlin.linearize_trajectory(scene, Q, workers=2)
 
 
-def test_standing_robots_weld_loops_and_numerical_derivatives_schedule_by_single_calls():
+def test_each_distinct_warning_of_the_single_calls_is_said_once_with_its_points():
+    """Two contacts that both pull at points 1 and 2: two ContactWarnings (one per contact,
+    numbers aside), each naming its first point and the count of the others."""
+    data = tomllib.loads((URDF_DIR / "ur5_arm.toml").read_text())
+    data["contacts"] = [{"name": "touch", "frame": "tool0", "type": "point"},
+                        {"name": "elbow", "frame": "wrist_2_link", "type": "point"}]
+    data["operating_point"].pop("independent", None)
+    scene = pinlin.Scene.from_dict(data)
+    Q = np.tile(pinlin.operating_point(scene).q, (3, 1))
+    Q[:, 1] += [0.0, 0.1, 0.2]
+    expected = set()
+    for k in range(3):  # what the single calls say, point by point
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            pinlin.linearize(scene, q=Q[k])
+        expected |= {(w.category, str(w.message).split(" pulls")[0], k) for w in caught
+                     if w.category is pinlin.ContactWarning}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pinlin.linearize_trajectory(scene, Q)
+    said = [str(w.message) for w in caught if w.category is pinlin.ContactWarning]
+    for contact in ("touch", "elbow"):
+        points = sorted(k for _, text, k in expected if f"'{contact}'" in text)
+        assert points == [1, 2]
+        assert [t for t in said if f"'{contact}'" in t][0].startswith(
+            "trajectory point 1 (and 1 more point): ")
+    assert len(said) == 2
+
+
+def test_standing_robots_weld_loops_and_numerical_derivatives_schedule_by_single_calls(
+        tmp_path):
     """What the stacked mechanism path leaves out at rest: a floating base standing on its
     contacts and numerical derivatives of a loop; each point is the single static call."""
     box = pinlin.Scene.resolve("standing_box")
@@ -338,6 +368,9 @@ def test_standing_robots_weld_loops_and_numerical_derivatives_schedule_by_single
     traj = pinlin.linearize_trajectory(box, Q)
     assert traj.at(1).operating_point.equilibrium
     assert_single_calls(box, traj, Q)
+    back = pinlin.TrajectoryModel.load(traj.save(tmp_path / "box.mat"))  # no inputs: (N, p, 0)
+    np.testing.assert_array_equal(back.A, traj.A)
+    assert back.D.shape == traj.D.shape
     four_bar = pinlin.Scene.load(URDF_DIR / "four_bar.toml")
     Q = schedule(four_bar, 3, 0.3, 12)
     traj = pinlin.linearize_trajectory(four_bar, Q, derivatives="fd3")

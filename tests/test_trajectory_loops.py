@@ -264,6 +264,7 @@ def test_velocities_are_projected_and_numerical_derivatives_go_point_by_point():
     scene = pinlin.Scene.resolve("four_bar")
     Q, V, U, _ = sweep(scene, 4, 11)
     fd = pinlin.linearize_trajectory(scene, Q, V, U, derivatives="fd3")
+    assert fd.info["derivatives"] == "fd3" and fd.info["step"]["q"] == 1e-5
     for k in range(4):
         single = pinlin.linearize(scene, q=fd.q[k], v=V[k], u=U[k], derivatives="fd3",
                                   estimate_error=False)

@@ -53,7 +53,13 @@ SYSTEMS = (  # (scene or robot, formulation, what it exercises)
     ("slider_crank", "independent, moving", "loop at a moving state"),
     ("five_bar", "independent, moving", "two-DoF loop at a moving state"),
     ("delta", "independent, moving", "three loops at a moving state"),
+    ("delta", "independent, moving fast", "three loops, joints at up to 30 rad/s"),
+    ("slider_crank@20", "independent, moving", "spinning at 20 rad/s, at a moving state"),
+    ("slider_crank@20", "independent, moving (reviewed)",
+     "the spinning state a review found closest to the bound"),
 )
+#: Speed factor of the "moving fast" states (velocities in [-30, 30] rad/s or m/s).
+FAST = 15.0
 #: Seed of the moving states: the scene's assembly, velocities in [-2, 2] rad/s or m/s (pinlin
 #: projects them onto the constraints) and inputs in [-1, 1] N*m or N.
 MOVING_SEED = 7
@@ -63,6 +69,15 @@ def scene_for(name: str) -> pinlin.Scene:
     """Bundled scene by name, else the example-robot-data robot (floating bases rotated)."""
     from pinlin.scene import bundled_scenes
 
+    if "@" in name:  # a bundled scene spinning about z at this rate [rad/s]
+        import tomllib
+
+        base, rate = name.split("@")
+        path = bundled_scenes()[base]
+        data = tomllib.loads(path.read_text())
+        data["urdf"] = str(path.parent / data["urdf"])
+        data["effects"]["rotation"] = {"axis": [0.0, 0.0, 1.0], "rate": float(rate)}
+        return pinlin.Scene.from_dict(data)
     if name in bundled_scenes():
         return pinlin.Scene.load(bundled_scenes()[name])
     return pinlin.Scene.from_robot(name, **(ROTATED if name in ("solo12", "talos") else {}))
@@ -76,16 +91,22 @@ def sweep() -> list[tuple[str, str, str, float, float, float]]:
         for name, formulation, _ in SYSTEMS:
             scene = scene_for(name)
             state: dict = {}
-            if formulation.endswith(", moving"):
+            label = formulation
+            if ", moving" in formulation:
                 formulation = formulation.split(",")[0]
-                rng = np.random.default_rng(MOVING_SEED)
                 system = scene.system
-                state = {"q": pinlin.operating_point(scene).q,
-                         "v": rng.uniform(-2.0, 2.0, system.nv),
-                         "u": rng.uniform(-1.0, 1.0, len(system.actuated))}
+                if label.endswith("(reviewed)"):  # seed 0, v in [-1, 1], u in [-3, 3]
+                    rng = np.random.default_rng(0)
+                    v = rng.uniform(-1.0, 1.0, system.nv)
+                    u = rng.uniform(-3.0, 3.0, len(system.actuated))
+                else:
+                    rng = np.random.default_rng(MOVING_SEED)
+                    speed = FAST if label.endswith("fast") else 1.0
+                    v = speed * rng.uniform(-2.0, 2.0, system.nv)
+                    u = rng.uniform(-1.0, 1.0, len(system.actuated))
+                state = {"q": pinlin.operating_point(scene).q, "v": v, "u": u}
             exact = pinlin.linearize(scene, formulation=formulation, **state)
-            if state:
-                formulation += ", moving"
+            formulation = label
             for backend in ("fd3", "fd5"):
                 for h in STEPS:
                     model = pinlin.linearize(scene, formulation=formulation.split(",")[0],

@@ -75,7 +75,7 @@ def numerical_moving(system, op: OperatingPoint, part: Partition, G: np.ndarray,
     R = projection(G, part)
 
     def build(K: np.ndarray, C: np.ndarray | None, cq: np.ndarray, cv: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         rhs = np.vstack([np.hstack([-K, -(zero if C is None else C), Bu]),
                          np.hstack([-cq, -cv, np.zeros((m, Bu.shape[1]))])])
         F = np.linalg.solve(kkt, rhs)[:nv]
@@ -90,9 +90,9 @@ def numerical_moving(system, op: OperatingPoint, part: Partition, G: np.ndarray,
         A[nz:, nz:] = (F_v @ R)[z]
         B = np.zeros((2 * nz, Bu.shape[1]))
         B[nz:] = F_u[z]
-        return A, B, W
+        return A, B, W, F_v
 
-    A, B, W = build(terms.K, terms.C, c_q, c_v)
+    A, B, W, F_v = build(terms.K, terms.C, c_q, c_v)
     info: dict[str, Any] = {"step": dict(steps)}
     if estimate:
         weight = _PLANS[backend][2]
@@ -100,7 +100,8 @@ def numerical_moving(system, op: OperatingPoint, part: Partition, G: np.ndarray,
         A_alt = build(K_est, C_est, c_q + weight * (c_q_alt - c_q),
                       c_v + weight * (c_v_alt - c_v))[0]
         # Rounding: each differenced entry's noise, through the rows z of KKT^-1 (the
-        # accelerations A reads) and the projections R (positions) and [R, W] (velocities).
+        # accelerations A reads) and the projections R (positions) and [R, W] (velocities);
+        # c_v's also through W = -Phi_d^-1 (c_v / 2) R, which A reads as F_v W.
         inverse = np.linalg.inv(kkt)[z]
         sigma_K, sigma_C = terms.rounding
         sigma_cq = entry_noise(computational_noise(c_of_q, nv, steps["q"]), scale_q, backend,
@@ -112,6 +113,9 @@ def numerical_moving(system, op: OperatingPoint, part: Partition, G: np.ndarray,
                  + propagated_noise(inverse[:, :nv], sigma_C, RW)
                  + propagated_noise(inverse[:, nv:], sigma_cq, R)
                  + propagated_noise(inverse[:, nv:], sigma_cv, RW))
+        if len(dep):
+            through_w = -0.5 * np.linalg.solve(G[:, dep].T, F_v[z][:, dep].T).T
+            noise += propagated_noise(through_w, sigma_cv, R)
         info.update(error_estimate(A, A_alt, noise))
     return A, B, np.concatenate([op.v[z], op.a[z]]), R, W, Bu, info
 
