@@ -58,6 +58,22 @@ class ConstrainedDynamics:
                                    self.prox)
         return a[z].copy()
 
+    def lower_rows(self, q0, z, zdot, u, h: float = 1e-5) -> np.ndarray:
+        """d z''/d[z, z'] (nz x 2nz) by central differences of :meth:`zdd` with step h."""
+        nz = len(z)
+        zero = np.zeros(nz)
+        cols = []
+        for k in range(nz):
+            e = np.zeros(nz)
+            e[k] = h
+            cols.append((self.zdd(q0, z, e, zdot, u) - self.zdd(q0, z, -e, zdot, u)) / (2 * h))
+        for k in range(nz):
+            e = np.zeros(nz)
+            e[k] = h
+            cols.append((self.zdd(q0, z, zero, zdot + e, u) - self.zdd(q0, z, zero, zdot - e, u))
+                        / (2 * h))
+        return np.array(cols).T
+
 
 @pytest.mark.parametrize("name, seed", [("four_bar", 0), ("slider_crank", 1), ("delta", 2),
                                         ("five_bar", 3)])
@@ -80,19 +96,8 @@ def test_moving_mechanism_matches_constrained_dynamics(name, seed):
     assert model.state_names == rest.state_names
     np.testing.assert_allclose(model.operating_point.v, v0, rtol=0, atol=1e-12)
     nz = len(z)
-    h = 1e-5
     zero = np.zeros(nz)
-    cols = []
-    for k in range(nz):
-        e = np.zeros(nz)
-        e[k] = h
-        cols.append((ref.zdd(q0, z, e, zdot0, u0) - ref.zdd(q0, z, -e, zdot0, u0)) / (2 * h))
-    for k in range(nz):
-        e = np.zeros(nz)
-        e[k] = h
-        cols.append((ref.zdd(q0, z, zero, zdot0 + e, u0) - ref.zdd(q0, z, zero, zdot0 - e, u0))
-                    / (2 * h))
-    lower = np.array(cols).T
+    lower = ref.lower_rows(q0, z, zdot0, u0, 1e-5)
     scale = np.abs(lower).max()
     np.testing.assert_allclose(model.A[nz:], lower, rtol=0, atol=1e-8 * scale)
     np.testing.assert_array_equal(model.A[:nz], np.hstack([np.zeros((nz, nz)), np.eye(nz)]))
