@@ -214,31 +214,43 @@ def _per_point(system, op: OperatingPoint, part: Partition, G: np.ndarray):
     d gamma / dq by five-point differences."""
     cons = system.constraints
     rows, z = part.rows, part.independent
-    nv, nz = system.nv, len(z)
     terms = second_order_terms(system, op, "analytic")
-    C = terms.C if terms.C is not None else np.zeros((nv, nv))
     S = system.input_matrix
     c_q = cons.jacobian_variation(op.q, op.a)[rows] + _gamma_derivative(system, op)[rows]
-    c_v = 2.0 * cons.jacobian_variation(op.q, op.v)[rows]
-    kkt = _kkt(terms.M, G)
-    m = len(rows)
-    rhs = np.vstack([np.hstack([-terms.K, -C, S]),
-                     np.hstack([-c_q, -c_v, np.zeros((m, S.shape[1]))])])
+    phi_v = cons.jacobian_variation(op.q, op.v)[rows]  # Phi_qq[v0, .]
+    R = projection(G, part)
+    A, B, W, _ = kkt_model(_kkt(terms.M, G), terms.K, terms.C, S, c_q, 2.0 * phi_v, phi_v, G,
+                           part, R)
+    f0 = np.concatenate([op.v[z], op.a[z]])
+    return A, B, f0, R, W, S
+
+
+def kkt_model(kkt: np.ndarray, K: np.ndarray, C: np.ndarray | None, Bu: np.ndarray,
+              c_q: np.ndarray, c_v: np.ndarray, phi_v: np.ndarray, G: np.ndarray,
+              part: Partition, R: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B, W, F_v) of the independent-coordinate model at a moving state from the
+    second-order terms (K, C (None: zero), Bu), the constraint acceleration's derivatives
+    (c_q, c_v, rows of G) and Phi_qq[v0, .] (``phi_v``): [F; L] = kkt^-1 [[-K, -C, Bu],
+    [-c_q, -c_v, 0]], W = -Phi_d^-1 phi_v R, A = [[0, I], [(F_q R + F_v W)_z, (F_v R)_z]],
+    B = [[0], [(F_u)_z]]."""
+    nv, m = K.shape[0], G.shape[0]
+    z, dep = part.independent, part.dependent
+    rhs = np.vstack([np.hstack([-K, -(np.zeros((nv, nv)) if C is None else C), Bu]),
+                     np.hstack([-c_q, -c_v, np.zeros((m, Bu.shape[1]))])])
     F = np.linalg.solve(kkt, rhs)[:nv]
     F_q, F_v, F_u = F[:, :nv], F[:, nv:2 * nv], F[:, 2 * nv:]
-    R = projection(G, part)
+    nz = len(z)
     W = np.zeros((nv, nz))
-    dep = part.dependent
     if len(dep):
-        W[dep] = -np.linalg.solve(G[:, dep], cons.jacobian_variation(op.q, op.v)[rows] @ R)
+        W[dep] = -np.linalg.solve(G[:, dep], phi_v @ R)
     A = np.zeros((2 * nz, 2 * nz))
     A[:nz, nz:] = np.eye(nz)
     A[nz:, :nz] = (F_q @ R + F_v @ W)[z]
     A[nz:, nz:] = (F_v @ R)[z]
-    B = np.zeros((2 * nz, S.shape[1]))
+    B = np.zeros((2 * nz, Bu.shape[1]))
     B[nz:] = F_u[z]
-    f0 = np.concatenate([op.v[z], op.a[z]])
-    return A, B, f0, R, W, S
+    return A, B, W, F_v
 
 
 def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,

@@ -52,14 +52,13 @@ def numerical_moving(system, op: OperatingPoint, part: Partition, G: np.ndarray,
     """(A, B, f0, R, W, Bu, info) of the moving model with ``backend`` ("fd3" or "fd5")
     derivatives (module docstring); ``info``: the steps and, with ``estimate``, the error
     estimate (``error_estimate``, ``error_estimate_rounding``)."""
-    from .motion import _kkt
+    from .motion import _kkt, kkt_model
 
     cons, model = system.constraints, system.model
     rows, z, dep = part.rows, part.independent, part.dependent
-    nv, m = system.nv, len(rows)
+    nv = system.nv
     steps = resolve_steps(backend, step)
     terms = second_order_terms(system, op, backend, step, estimate)
-    zero = np.zeros((nv, nv))
     Bu = terms.Bu if terms.Bu is not None else system.input_matrix
 
     def c_of_q(d: np.ndarray) -> np.ndarray:
@@ -76,21 +75,7 @@ def numerical_moving(system, op: OperatingPoint, part: Partition, G: np.ndarray,
 
     def build(K: np.ndarray, C: np.ndarray | None, cq: np.ndarray, cv: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        rhs = np.vstack([np.hstack([-K, -(zero if C is None else C), Bu]),
-                         np.hstack([-cq, -cv, np.zeros((m, Bu.shape[1]))])])
-        F = np.linalg.solve(kkt, rhs)[:nv]
-        F_q, F_v, F_u = F[:, :nv], F[:, nv:2 * nv], F[:, 2 * nv:]
-        W = np.zeros((nv, len(z)))
-        if len(dep):
-            W[dep] = -np.linalg.solve(G[:, dep], 0.5 * cv @ R)
-        nz = len(z)
-        A = np.zeros((2 * nz, 2 * nz))
-        A[:nz, nz:] = np.eye(nz)
-        A[nz:, :nz] = (F_q @ R + F_v @ W)[z]
-        A[nz:, nz:] = (F_v @ R)[z]
-        B = np.zeros((2 * nz, Bu.shape[1]))
-        B[nz:] = F_u[z]
-        return A, B, W, F_v
+        return kkt_model(kkt, K, C, Bu, cq, cv, 0.5 * cv, G, part, R)  # Phi_qq[v0] = c_v / 2
 
     A, B, W, F_v = build(terms.K, terms.C, c_q, c_v)
     info: dict[str, Any] = {"step": dict(steps)}
