@@ -341,6 +341,35 @@ def assemble_with_jacobian(system, q_guess: np.ndarray, independent: np.ndarray,
     return q, jac
 
 
+def assemble_guess(system, q_guess: np.ndarray, *, cache: bool = True,
+                   start: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, Partition | None]:
+    """:func:`assemble_with_jacobian` with the scene's independent coordinates, or pinlin's
+    choice at the guess when the scene names none: (q0, Phi_q(q0), the guess's unchecked
+    partition, or None where the scene names z and no partition of the guess is needed).
+    ``start``: (Phi, Phi_q) at ``q_guess`` when the caller has them.
+
+    Raises:
+        SceneError: the scene names a list of the wrong size (the guess's partition says so
+            rather than Newton's failure).
+        AssemblyError: no convergence.
+    """
+    if start is None:
+        start = system.constraints.residual_and_jacobian(q_guess)
+    if system.scene.operating_point.independent:
+        try:
+            q0, jac = assemble_with_jacobian(system, q_guess, named_independent(system)[0],
+                                             cache=cache, start=start)
+        except AssemblyError:
+            partition(system, q_guess, start[1], check=False)
+            raise
+        return q0, jac, None
+    part = partition(system, q_guess, start[1], check=False)  # conditioning: once assembled
+    q0, jac = assemble_with_jacobian(system, q_guess, part.independent, cache=cache,
+                                     start=start)
+    return q0, jac, part
+
+
 def cached_assembly(system, q_guess: np.ndarray, independent: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray] | None:
     """(q0, Phi_q(q0)) of a guess solved before with these z indices (fresh copies), else

@@ -39,7 +39,7 @@ import pinocchio as pin
 from .assembly import (
     Partition,
     assemble,
-    assemble_with_jacobian,
+    assemble_guess,
     cached_assembly,
     lstsq_rank,
     named_independent,
@@ -47,7 +47,7 @@ from .assembly import (
     projection,
 )
 from .contacts import statics_notes
-from .exceptions import AssemblyError, EquilibriumError, SceneError
+from .exceptions import EquilibriumError, SceneError
 from .operating_point import OperatingPoint, residual_tolerance
 
 
@@ -114,22 +114,10 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
         if found is not None:
             q0, jac = found
     if jac is None:
-        start = cons.residual_and_jacobian(q_guess) if cons else None
-        part = None
-        if cons and spec.independent:  # the scene's z: no partition of the guess needed
-            try:
-                q0, jac = assemble_with_jacobian(system, q_guess, named_independent(system)[0],
-                                                 start=start)
-            except AssemblyError:  # a z list of the wrong size says so, not Newton
-                partition(system, q_guess, start[1], check=False)
-                raise
+        if cons:
+            q0, jac, part = assemble_guess(system, q_guess)
         else:
-            # conditioning is judged once assembled
-            part = partition(system, q_guess, None if start is None else start[1], check=False)
-            if cons:
-                q0, jac = assemble_with_jacobian(system, q_guess, part.independent, start=start)
-            else:
-                q0 = q_guess
+            q0, part = q_guess, partition(system, q_guess, check=False)
     else:
         part = None
     if spec.solve == "positions":

@@ -44,16 +44,10 @@ import pinocchio as pin
 
 from .. import loop_kernels as lk
 from ..arrays import read_only
-from ..assembly import (
-    Partition,
-    assemble_with_jacobian,
-    named_independent,
-    partition,
-    projection,
-)
+from ..assembly import Partition, assemble_guess, partition, projection
 from ..derivatives import second_order_terms
 from ..equilibrium import ConstrainedPoint
-from ..exceptions import AssemblyError, ModelError
+from ..exceptions import ModelError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint, residual_tolerance
 from . import moving_batch
@@ -73,15 +67,7 @@ def moving_point(system, q_guess: np.ndarray, v0: np.ndarray, u0: np.ndarray
         AssemblyError: the loops cannot be closed from ``q_guess``.
         ModelError: weld loops (not supported at a moving state yet).
     """
-    if system.scene.operating_point.independent:  # the scene's z: no partition of the guess
-        z = named_independent(system)[0]
-    else:
-        z = partition(system, q_guess, check=False).independent
-    try:  # Phi_q at q0 from Newton's last kinematics pass
-        q0, jac = assemble_with_jacobian(system, q_guess, z, cache=False)
-    except AssemblyError:  # a z list of the wrong size says so, not Newton
-        partition(system, q_guess, check=False)
-        raise
+    q0, jac, _ = assemble_guess(system, q_guess, cache=False)  # Phi_q from Newton's last pass
     part = partition(system, q0, jac)
     return state_at(system, q0, v0, u0, part, jac)
 
