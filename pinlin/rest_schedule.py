@@ -36,6 +36,7 @@ from . import loop_kernels as lk
 from .batch import Layout, at_point
 from .conditioning import AccuracyWarning
 from .exceptions import ArgumentError, EquilibriumError, ModelError, PinlinError, SceneError
+from .linearization import _flag
 from .operating_point import residual_tolerance
 from .resources import check_memory
 from .system import System
@@ -58,8 +59,7 @@ def rest_options(system: System, v: object, u: object, allow: object) -> bool | 
         missing = "u" if u is None else "v"
         raise ArgumentError(missing, "give both v and u (states), or neither (a schedule of "
                                      "rest points whose holding inputs are solved)")
-    if allow is not None and not isinstance(allow, bool | np.bool_):
-        raise ArgumentError("allow_non_equilibrium", f"expected True or False, got {allow!r}")
+    allow = _flag("allow_non_equilibrium", allow)
     if v is not None:
         if allow is not None:
             raise ArgumentError("allow_non_equilibrium", "applies to a schedule of rest points "
