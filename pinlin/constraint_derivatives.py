@@ -24,7 +24,8 @@ def bias_acceleration(cons: ConstraintSet, q: np.ndarray, v: np.ndarray) -> np.n
     out = np.zeros(cons.size)
     if not cons._closures:
         return out
-    cons._refuse_welds()
+    if cons.has_welds:
+        return motion_rows(cons, q, v, np.zeros(cons.system.nv))[1]
     sysm = cons.system
     kin, kd = sysm.kin_model, sysm.kin_data
     pin.forwardKinematics(kin, kd, sysm.kin_q(q), sysm.kin_v(v, spin=False),
@@ -35,6 +36,44 @@ def bias_acceleration(cons: ConstraintSet, q: np.ndarray, v: np.ndarray) -> np.n
         if f2 is not None:
             out[row:row + 3] -= pin.getFrameClassicalAcceleration(kin, kd, f2, LWA).linear
     return out
+
+
+def motion_rows(cons: ConstraintSet, q: np.ndarray, v: np.ndarray, a: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi_q v, Phi_q a + Phi_qq[v, v]) (m each) at an assembled configuration q: the first
+    and second time derivatives of Phi along a motion through q with velocity v [1/s] and
+    acceleration a [1/s^2], from one ``forwardKinematics(q, v, a)``. Point rows: the frames'
+    linear velocities and classical accelerations (LOCAL_WORLD_ALIGNED), frame 1's minus
+    frame 2's (the world's: zero). Weld rotation rows, at E = R1 R2^T = I where
+    d/dt log3(E) = w1 - w2 and d/dt (Jlog3(E) E^T) = -1/2 [w1 - w2]x: w1 - w2 and
+    al1 - al2 - (w1 - w2) x w2 (w, al: the frames' world angular velocities and
+    accelerations). Mimic rows: 0 (linear in q). Not for a rotating scene's frame."""
+    sysm = cons.system
+    vel, acc = np.zeros(cons.size), np.zeros(cons.size)
+    if not cons._closures:
+        return vel, acc
+    kin, kd = sysm.kin_model, sysm.kin_data
+    pin.forwardKinematics(kin, kd, sysm.kin_q(q), sysm.kin_v(v, spin=False),
+                          sysm.kin_v(a, spin=False))
+    pin.updateFramePlacements(kin, kd)
+    zero = np.zeros(3)
+    for kind, f1, f2, row, _ in cons._closures:
+        v1 = pin.getFrameVelocity(kin, kd, f1, LWA)
+        vel[row:row + 3] = v1.linear
+        acc[row:row + 3] = pin.getFrameClassicalAcceleration(kin, kd, f1, LWA).linear
+        w2 = al2 = zero
+        if f2 is not None:
+            v2 = pin.getFrameVelocity(kin, kd, f2, LWA)
+            vel[row:row + 3] -= v2.linear
+            acc[row:row + 3] -= pin.getFrameClassicalAcceleration(kin, kd, f2, LWA).linear
+            w2 = v2.angular
+            al2 = pin.getFrameAcceleration(kin, kd, f2, LWA).angular
+        if kind == "weld":
+            d = v1.angular - w2
+            vel[row + 3:row + 6] = d
+            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular - al2
+                                    - np.cross(d, w2))
+    return vel, acc
 
 
 def jacobian_variation(cons: ConstraintSet, q: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -371,10 +371,8 @@ class ConstraintSet:
         acceleration, so that the loops stay closed when Phi_q a = -gamma [m/s^2]. Point
         loops and contacts: the difference of the two frames' classical accelerations
         (LOCAL_WORLD_ALIGNED, from ``forwardKinematics(q, v, 0)``; the world's is zero); mimic
-        rows are linear: 0.
-
-        Raises:
-            ModelError: a weld loop or contact (not supported at a moving state yet).
+        rows are linear: 0. With welds, at an assembled q only
+        (:func:`pinlin.constraint_derivatives.motion_rows`).
         """
         return constraint_derivatives.bias_acceleration(self, q, v)
 

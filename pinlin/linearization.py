@@ -252,7 +252,9 @@ def linearize(scene: Scene | System | str | Path, *,
             (``model.f0``; x and u deviations from the state). Open chains in the
             independent formulation; mechanisms (fixed base, point loops, mimic couplings) in
             the independent formulation (partitioned basis; analytic, fd3 or fd5 derivatives)
-            or the penalty formulation (analytic), loops closed and v0 projected.
+            or the penalty formulation (analytic), loops closed and v0 projected; floating
+            bases on contacts and weld loops in the independent formulation (partitioned
+            basis, analytic derivatives).
         allow_non_equilibrium: Override the scene's ``operating_point.allow_non_equilibrium``.
         basis: Independent coordinates of a constrained system (independent formulation only):
             ``"partitioned"`` (the independent joints z, the default) or ``"orthonormal"`` (an

@@ -399,9 +399,9 @@ def _bad_cases():
                         "argument 'derivatives'"),
         "step": ((ur5, q, v, u), {"step": 1e-4}, pinlin.ArgumentError,
                  "analytic derivatives take none"),
-        "standing": (("standing_box", np.tile([0.0, 0, 0.05, 0, 0, 0, 1], (2, 1)),
-                      np.zeros((2, 6)), np.zeros((2, 0))), {}, pinlin.ModelError,
-                     "is not supported for it yet"),
+        "standing": (("standing_box", np.tile([0.0, 0, 0.5, 0, 0, 0, 1], (2, 1)),
+                      np.zeros((2, 6)), np.zeros((2, 0))), {"derivatives": "fd5"},
+                     pinlin.ModelError, "analytic derivatives only"),
         "scene": ((42, q, v, u), {}, pinlin.ArgumentError, "argument 'scene'"),
     }
 

@@ -30,11 +30,13 @@ Where :func:`pinlin.loop_kernels.plan` applies (no steady rotation, point closur
 included, and the model is computed by :mod:`pinlin.formulations.moving_batch` (the code a
 trajectory runs on its stacks, here with one point). Elsewhere Pinocchio gives every term
 analytically except d gamma / dq, taken by five-point central differences of gamma (step
-1e-3: truncation ~h^4, rounding ~eps |gamma| / h, about 1e-12 relative). Point loops and
-mimic couplings; weld loops, the orthonormal basis and the penalty and canonical
-formulations at a moving state are not supported yet. tests/test_moving_loops.py checks
-the model against central differences of Pinocchio's own constrained forward dynamics on
-the mechanism.
+1e-3: truncation ~h^4, rounding ~eps |gamma| / h, about 1e-12 relative). Floating bases
+(Lie-group joints) and welds, where Phi_qq is not symmetric, take
+:mod:`pinlin.formulations.moving_manifold`. The orthonormal basis and the canonical
+formulation at a moving state are not supported yet, nor the penalty formulation or numerical
+derivatives for floating bases and welds. tests/test_moving_loops.py checks the model
+against central differences of Pinocchio's own constrained forward dynamics on the
+mechanism.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ from ..equilibrium import ConstrainedPoint
 from ..exceptions import ModelError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint, residual_tolerance
-from . import moving_batch
+from . import moving_batch, moving_manifold
 from .constrained import constrained_effects
 from .independent import output_matrices
 
@@ -107,7 +109,8 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
     tau = system.applied_force(q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
     tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
     zn = ", ".join(system.coordinate_names[i] for i in part.independent)
-    notes = [f"state given (solve = \"none\"), loops closed: independent coordinates {zn}; "
+    closed = "contacts held" if cons.contacts and not system.scene.loops else "loops closed"
+    notes = [f"state given (solve = \"none\"), {closed}: independent coordinates {zn}; "
              f"the velocity given was projected onto the constraint nullspace (correction "
              f"|dv| = {np.linalg.norm(correction):.3g}); |a0| = {np.linalg.norm(a0):.6g}; "
              "the model is affine, x' = f0 + A x + B u"]
@@ -165,6 +168,8 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint, *,
         mats = moving_batch.models(system, plan, st, rows, z, part.dependent)
         A, B, f0, R, W = mats.A[0], mats.B[0], mats.f0[0], mats.R[0], mats.W[0]
         S = system.input_matrix
+    elif moving_manifold.applies(system):  # floating bases, welds
+        A, B, f0, R, W, S = moving_manifold.model(system, op, part, G)
     else:
         A, B, f0, R, W, S = _per_point(system, op, part, G)
     coords = [system.coordinate_names[i] for i in z]
@@ -328,16 +333,17 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
                          "is linearized in the independent formulation with the partitioned "
                          "basis or in the penalty formulation; the canonical formulation and "
                          "the orthonormal basis are not supported there yet")
-    if system.base_joint is not None:
-        raise ModelError(f"scene '{system.scene.name}': a floating-base robot with loops or "
-                         "contacts is linearized standing, with its statics solved "
-                         "(operating_point.solve = \"inputs\", or \"forces\" for given inputs); "
-                         "a given state (solve = \"none\", or q, v, u passed to linearize), "
-                         "moving or not, is not supported for it yet")
-    if system.constraints.has_welds:
-        raise ModelError(f"scene '{system.scene.name}': weld loops and contacts at a moving "
-                         "state are not supported yet (point loops and contacts and mimic "
-                         "couplings are)")
+    if moving_manifold.applies(system):
+        what = ("a floating-base robot with contacts or loops" if system.base_joint else
+                "a mechanism with Lie-group joints or welds")
+        if formulation != "independent" or derivatives != "analytic":
+            raise ModelError(f"scene '{system.scene.name}': at a moving state {what} is "
+                             "linearized in the independent formulation with analytic "
+                             "derivatives only (the penalty formulation and fd3/fd5 are not "
+                             "supported there yet)")
+        if system.rotation is not None:
+            raise ModelError(f"scene '{system.scene.name}': a steadily rotating scene with "
+                             "Lie-group joints or welds is not supported at a moving state")
 
 
 __all__ = ["linearize_moving", "linearize_moving_penalty", "moving_point",

@@ -1,0 +1,165 @@
+"""Constrained systems at a moving state where the constraint's second derivatives are not
+symmetric: floating bases (and any free-flyer, spherical or planar joint) standing on
+contacts or closing loops, and weld loops and contacts.
+
+The model is :mod:`pinlin.formulations.motion`'s (eqs. 9.8-9.11 with every velocity term,
+independent coordinates z, partitioned basis), x = [dz; dz'] with dz = difference(q0, q)[z]
+and z' = v[z]::
+
+    [[M, -G^T], [G, 0]] [F_q R, F_v, F_u; .] = [[-K R, -C, S], [-c_q R, -c_v, 0]]
+    A = [[(N R)[z], I], [(F_q R + F_v W)[z], (F_v R)[z]]],   B = [[0], [F_u[z]]]
+
+with three differences from the revolute case, all from the non-commuting tangent coordinates
+of Lie-group joints (X_j X_k Phi != X_k X_j Phi) and the weld rows' log3:
+
+- The kinematic block N = d(Jexp(dq)^-1 v0)/d(dq) = -1/2 ad(v0) on Lie-group joints
+  (:func:`pinlin.chart.kinematic_block`): d/dt dz = v[z] + (N R dz)[z].
+- W: the velocity that keeps the constraints at q0 (+) R dz is v0 + R dz' + W dz with
+  G W = -d(Phi_q v0)/dq R (the derivative *of* Phi_q applied to v0), not -Phi_qq[v0, .] R.
+- c_q R = d(Phi_q a0 + gamma(q, v0))/dq R and c_v = d gamma/dv, whose two halves
+  Phi_qq[., v0] and Phi_qq[v0, .] differ.
+
+d(Phi_q v0)/dq R and c_q R are derivatives along the constraint manifold: five-point central
+differences (step :data:`STEP`) of the constraint velocity and acceleration
+(:func:`pinlin.constraint_derivatives.motion_rows`: frame velocities and accelerations of one
+``forwardKinematics(q, v0, a0)``) along the curves q(s) through q0 with tangent R e_i, each
+point assembled by Newton on the dependent coordinates to rounding (the weld rows' second
+derivative is exact on the manifold only). c_v is exact by central differences in v of unit
+step: gamma is quadratic in v. K (with the geometric stiffness -lam0^T Phi_qq, its Lie-group
+blocks exact), C and M are Pinocchio's analytic derivatives
+(:func:`pinlin.derivatives.second_order_terms`).
+
+Accuracy: truncation ~h^4 |f^(5)| / 30 and rounding ~eps |f| / h. The step 1e-4 is set by the
+most curved case measured, two spatial branches welded tip to tip near a singular position
+(Phi_d's condition 293), whose truncation at h = 1e-3 was 4e-5 of the terms and at 1e-4 below
+the rounding; on the bundled mechanisms the path agrees with the analytic kernels to 2e-14..
+9e-13 of max |A|. tests/test_moving_standing.py checks the model against central differences of
+Pinocchio's ``constraintDynamics`` on the manifold in this chart, and against the revolute
+path of :mod:`pinlin.formulations.motion` on mechanisms.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import lapack
+
+from ..assembly import Partition, projection
+from ..chart import kinematic_block
+from ..constraint_derivatives import motion_rows
+from ..derivatives import second_order_terms
+from ..exceptions import AssemblyError
+from ..operating_point import OperatingPoint
+
+#: Step of the five-point differences along the constraint manifold [rad or m].
+STEP = 1e-4
+#: Newton iterations of a point of a difference curve before it is called a failure.
+MAX_ITER = 20
+
+
+def applies(system) -> bool:
+    """Whether a constrained system at a moving state takes this module's path: a Lie-group
+    joint (a floating base) or a weld loop or contact."""
+    cons = system.constraints
+    return bool(cons._lie_blocks) or cons.has_welds
+
+
+def _on_manifold(system, q: np.ndarray, rows: np.ndarray, dep: np.ndarray) -> np.ndarray:
+    """q moved on its dependent coordinates until the constraints on ``rows`` hold to rounding
+    (Newton, z held: until a step no longer reduces max |Phi|)."""
+    cons, model = system.constraints, system.model
+    step = np.zeros(system.nv)
+    phi, jac = cons.residual_and_jacobian(q)
+    best = np.abs(phi).max(initial=0.0)
+    for _ in range(MAX_ITER):
+        _, _, x, info = lapack.dgesv(jac[rows][:, dep], -phi[rows])
+        if info != 0:
+            break
+        step[dep] = x
+        trial = pin.integrate(model, q, step)
+        phi_t, jac_t = cons.residual_and_jacobian(trial)
+        worst = np.abs(phi_t).max(initial=0.0)
+        if not worst < best:
+            return q
+        q, phi, jac, best = trial, phi_t, jac_t, worst
+    if best > 1e-10:
+        raise AssemblyError(f"scene '{system.scene.name}': the constraints do not close near the "
+                            f"operating point (residual {best:.3g}) while differencing the "
+                            "constraint acceleration along the mechanism", phi,
+                            cons.row_names)
+    return q
+
+
+def manifold_derivatives(system, op: OperatingPoint, part: Partition, R: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """(d(Phi_q v0)/dq R, d(Phi_q a0 + gamma)/dq R) (m x nz each) by five-point differences
+    along the constraint manifold (module docstring)."""
+    cons, model = system.constraints, system.model
+    rows, dep = np.asarray(part.rows, dtype=int), np.asarray(part.dependent, dtype=int)
+    nz = R.shape[1]
+    dvel = np.zeros((cons.size, nz))
+    dacc = np.zeros((cons.size, nz))
+    weights = {-2: 1.0, -1: -8.0, 1: 8.0, 2: -1.0}
+    for i in range(nz):
+        for k, w in weights.items():
+            q = pin.integrate(model, op.q, (k * STEP) * R[:, i])
+            if len(dep):
+                q = _on_manifold(system, q, rows, dep)
+            vel, acc = motion_rows(cons, q, op.v, op.a)
+            dvel[:, i] += w * vel
+            dacc[:, i] += w * acc
+    return dvel / (12 * STEP), dacc / (12 * STEP)
+
+
+def velocity_derivative(system, op: OperatingPoint) -> np.ndarray:
+    """c_v = d gamma/dv at (q0, v0) (m x nv): central differences of unit step, exact for
+    gamma, which is quadratic in v (the a0 part cancels)."""
+    cons = system.constraints
+    out = np.zeros((cons.size, system.nv))
+    e = np.zeros(system.nv)
+    for j in range(system.nv):
+        e[j] = 1.0
+        out[:, j] = 0.5 * (motion_rows(cons, op.q, op.v + e, op.a)[1]
+                           - motion_rows(cons, op.q, op.v - e, op.a)[1])
+        e[j] = 0.0
+    return out
+
+
+def model(system, op: OperatingPoint, part: Partition, G: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B, f0, R, W, S) of the independent-coordinate model at a moving state (module
+    docstring); ``G``: the partition's rows of Phi_q at op.q."""
+    rows, z, dep = part.rows, part.independent, part.dependent
+    nv, nz, m = system.nv, len(z), len(rows)
+    terms = second_order_terms(system, op, "analytic")
+    S = system.input_matrix
+    R = projection(G, part)
+    dvel, dacc = manifold_derivatives(system, op, part, R)
+    c_v = velocity_derivative(system, op)[rows]
+    C = np.zeros((nv, nv)) if terms.C is None else terms.C
+    kkt = np.zeros((nv + m, nv + m))
+    kkt[:nv, :nv] = terms.M
+    kkt[:nv, nv:] = -G.T
+    kkt[nv:, :nv] = G
+    rhs = np.vstack([np.hstack([-(terms.K @ R), -C, S]),
+                     np.hstack([-dacc[rows], -c_v, np.zeros((m, S.shape[1]))])])
+    F = np.linalg.solve(kkt, rhs)[:nv]
+    FqR, F_v, F_u = F[:, :nz], F[:, nz:nz + nv], F[:, nz + nv:]
+    W = np.zeros((nv, nz))
+    if len(dep):
+        W[dep] = -np.linalg.solve(G[:, dep], dvel[rows])
+    A = np.zeros((2 * nz, 2 * nz))
+    N = kinematic_block(system, op.v)
+    if N is not None:
+        A[:nz, :nz] = (N @ R)[z]
+    A[:nz, nz:] = np.eye(nz)
+    A[nz:, :nz] = (FqR + F_v @ W)[z]
+    A[nz:, nz:] = (F_v @ R)[z]
+    B = np.zeros((2 * nz, S.shape[1]))
+    B[nz:] = F_u[z]
+    f0 = np.concatenate([op.v[z], op.a[z]])
+    return A, B, f0, R, W, S
+
+
+__all__ = ["MAX_ITER", "STEP", "applies", "manifold_derivatives", "model",
+           "velocity_derivative"]

@@ -1,0 +1,277 @@
+"""Floating bases on contacts, weld loops and welded contacts at a moving state
+(:mod:`pinlin.formulations.moving_manifold`).
+
+References from outside the code under test:
+
+- Pinocchio's constrained forward dynamics (``constraintDynamics``, its own contact and loop
+  Jacobians, RigidConstraintModels to the universe for contacts) differenced on the
+  constraint manifold in the model's chart x = [difference(q0, q)[z]; v[z]]: q re-assembled
+  with z held, v the velocity with v[z] = z' that keeps the constraints (Pinocchio's
+  Jacobian), d/dt difference(q0, q) = dDifference(q0, q) v (Pinocchio);
+- the fixed-base four-bar (itself checked against the same differences in
+  tests/test_moving_loops.py) equals the four-bar on a floating base welded to the world;
+- on revolute mechanisms, the stacked analytic kernels of the fixed-base path.
+"""
+
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import URDF_DIR
+from test_closed_loops import _two_branch_urdf
+from test_contacts import _box
+
+import pinlin
+from pinlin.assembly import assemble
+from pinlin.formulations import moving_manifold
+
+G = 9.81
+
+
+class ChartDynamics:
+    """Pinocchio's constrained dynamics of a scene's contacts and loops, on the manifold, in
+    the chart x = [difference(q0, q)[z]; v[z]]."""
+
+    def __init__(self, system, z: np.ndarray) -> None:
+        self.system, self.z = system, z
+        pm = self.model = system.model
+        lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        kinds = {"point": pin.ContactType.CONTACT_3D, "weld": pin.ContactType.CONTACT_6D}
+        self.cm = pin.StdVec_RigidConstraintModel()
+        for c in system.constraints.contacts:
+            f = pm.frames[c.frame_id]
+            self.cm.append(pin.RigidConstraintModel(kinds[c.type], pm, f.parentJoint,
+                                                    f.placement, 0, c.placement, lwa))
+        for loop in system.scene.loops:
+            f1, f2 = pm.frames[pm.getFrameId(loop.frame1)], pm.frames[pm.getFrameId(loop.frame2)]
+            self.cm.append(pin.RigidConstraintModel(kinds[loop.type], pm, f1.parentJoint,
+                                                    f1.placement, f2.parentJoint, f2.placement,
+                                                    lwa))
+        self.cd = pin.StdVec_RigidConstraintData()
+        for c in self.cm:
+            self.cd.append(c.createData())
+        self.data = pm.createData()
+        pin.initConstraintDynamics(pm, self.data, self.cm, self.cd)
+        self.prox = pin.ProximalSettings(1e-14, 1e-8, 400)
+
+    def velocity(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The v with v[z] = w that keeps the constraints (Pinocchio's Jacobian)."""
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        for c, cd in zip(self.cm, self.cd, strict=True):
+            c.calc(self.model, self.data, cd)  # else the Jacobian is silently stale
+        J = pin.getConstraintsJacobian(self.model, self.data, self.cm, self.cd)
+        dep = np.setdiff1d(np.arange(self.model.nv), self.z)
+        v = np.zeros(self.model.nv)
+        v[self.z] = w
+        v[dep] = -np.linalg.lstsq(J[:, dep], J[:, self.z] @ w, rcond=None)[0]
+        return v
+
+    def f(self, q0: np.ndarray, dz: np.ndarray, w: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """d/dt [difference(q0, q)[z]; v[z]] at the state (dz, w) with inputs u."""
+        system, z = self.system, self.z
+        step = np.zeros(system.nv)
+        step[z] = dz
+        q = assemble(system, pin.integrate(self.model, q0, step), z) if dz.any() else q0
+        v = self.velocity(q, w)
+        tau = system.input_matrix @ u + system.spring_torque(q) - system.damping * v
+        a = pin.constraintDynamics(self.model, self.data, q, v, tau, self.cm, self.cd,
+                                   self.prox)
+        dq_dt = pin.dDifference(self.model, q0, q, pin.ArgumentPosition.ARG1) @ v
+        return np.concatenate([dq_dt[z], a[z]])
+
+    def jacobians(self, q0: np.ndarray, w: np.ndarray, u: np.ndarray, h: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """(A, B) by central differences of :meth:`f`, step h in dz and w, 1 in u (linear)."""
+        nz = len(self.z)
+        zero = np.zeros(nz)
+        cols = [(self.f(q0, h * e, w, u) - self.f(q0, -h * e, w, u)) / (2 * h)
+                for e in np.eye(nz)]
+        cols += [(self.f(q0, zero, w + h * e, u) - self.f(q0, zero, w - h * e, u)) / (2 * h)
+                 for e in np.eye(nz)]
+        B = [(self.f(q0, zero, w, u + e) - self.f(q0, zero, w, u - e)) / 2.0
+             for e in np.eye(len(u))]
+        return np.array(cols).T, np.array(B).T.reshape(2 * nz, len(u))
+
+
+def _two_branch_weld(tmp_path) -> pinlin.Scene:
+    """Two spatial 4R branches welded tip to tip (tests/test_closed_loops.py's scene)."""
+    q_star = np.array([0.3, -0.5, 0.4, 0.9, 2.6, 0.4, -0.3, -0.8])
+    path = tmp_path / "two_branches.urdf"
+    path.write_text(_two_branch_urdf(None))
+    pm = pin.buildModelFromUrdf(str(path))
+    pd = pm.createData()
+    pin.framesForwardKinematics(pm, pd, q_star)
+    on_b3 = pd.oMf[pm.getFrameId("tip_b")].inverse() * pd.oMf[pm.getFrameId("tip_a")]
+    path.write_text(_two_branch_urdf(on_b3))
+    names = [f"a{i}" for i in range(4)] + [f"b{i}" for i in range(4)]
+    return pinlin.Scene.from_dict({
+        "urdf": str(path),
+        "effects": {"gravity": [0, 0, -G],
+                    "springs": {n: {"stiffness": 3.0, "rest": float(q) + 0.1}
+                                for n, q in zip(names, q_star, strict=True)}},
+        "loops": [{"name": "weld", "type": "weld", "frame1": "tip_a", "frame2": "tip_b"}],
+        "operating_point": {"q": {n: float(q) for n, q in zip(names, q_star, strict=True)},
+                            "independent": ["a0", "b0"]},
+        "inputs": {"actuated": "all"}})
+
+
+def _case(name: str, tmp_path) -> pinlin.Scene:
+    if name == "tilted_box":   # the base in z, turned and tilted: the kinematic block acts
+        return _box([{"name": "tip", "frame": "bottom"}], rpy=[0.2, -0.15, 0.7])
+    if name == "blade":        # a redundant contact row
+        return _box([{"name": "front", "frame": "blade_front"},
+                     {"name": "back", "frame": "blade_back"}])
+    if name == "two_branch_weld":
+        return _two_branch_weld(tmp_path)
+    return pinlin.Scene.load(URDF_DIR / f"{name}.toml")
+
+
+@pytest.mark.parametrize("name, seed, h, tol", [
+    ("tilted_box", 0, 1e-5, 1e-7), ("blade", 1, 1e-5, 1e-7), ("solo12_standing", 2, 1e-5, 1e-7),
+    ("talos_standing", 3, 1e-5, 1e-7), ("two_branch_weld", 4, 1e-6, 1e-6)])
+def test_moving_model_matches_constraint_dynamics_in_its_chart(name, seed, h, tol, tmp_path):
+    """A, B and f0 at a moving state against central differences (step h) of Pinocchio's
+    constrained dynamics in the chart (module docstring). The differences' truncation
+    (h^2 times the third derivative) and rounding (eps |a| / h, and the assembly's 1e-12
+    residual / h) are measured at 2e-10 of max |A| on solo12 (it falls as h^2 from 5e-7 at
+    h = 1e-3 down to that floor at h = 1e-5; 1.2e-10 Talos, 1.7e-11 box): the tolerance 1e-7
+    leaves ~500x. The two-branch weld (Phi_d's condition 293, entries of A up to 1e4 from
+    terms of 8e4) curves much more: the differences reach their floor, 8e-8, only at
+    h = 1e-6 (3e-6 at 1e-5), so it is checked to 1e-6 there (12x). The model at rest differs
+    by O(1) (but on the blade, a hinged pendulum), so the velocity terms are checked."""
+    scene = _case(name, tmp_path)
+    system = scene.system
+    rng = np.random.default_rng(seed)
+    u0 = rng.uniform(-1.0, 1.0, len(system.actuated))
+    still = pinlin.linearize(scene, v=np.zeros(system.nv), u=u0)  # assembled, not moving
+    z = np.array([system.coordinate_names.index(c) for c in still.info["independent"]])
+    nz = len(z)
+    ref = ChartDynamics(system, z)
+    w0 = rng.uniform(-1.0, 1.0, nz)
+    q0 = still.operating_point.q
+    v0 = ref.velocity(q0, w0)                 # consistent: nothing to project
+    model = pinlin.linearize(scene, q=q0, v=v0, u=u0)
+    assert model.state_names == still.state_names
+    np.testing.assert_allclose(model.operating_point.v, v0, rtol=0, atol=1e-12)
+    A, B = ref.jacobians(q0, w0, u0, h)
+    scale = np.abs(A).max()
+    np.testing.assert_allclose(model.A, A, rtol=0, atol=tol * scale)
+    if B.size:
+        np.testing.assert_allclose(model.B, B, rtol=0, atol=1e-7 * np.abs(B).max())
+    f0 = ref.f(q0, np.zeros(nz), w0, u0)
+    np.testing.assert_allclose(model.f0, f0, rtol=0, atol=1e-9 * np.abs(f0).max())
+    if name != "blade":   # a hinged pendulum: th'' = (m g l / I) sin th has no velocity terms
+        assert np.abs(model.A - still.A).max() > 1e-3 * scale
+
+
+def test_tilted_box_upper_rows_carry_the_kinematic_block(tmp_path):
+    """With the base's coordinates independent and a turning base, d/dt difference(q0, q)
+    depends on dq: the upper block row is not [0 I] (its first block is (-1/2 ad(v0) R)[z],
+    checked against the differences above); at rest it is."""
+    scene = _case("tilted_box", tmp_path)
+    rest = pinlin.linearize(scene, v=np.zeros(6))
+    nz = rest.A.shape[0] // 2
+    v = np.zeros(6)
+    v[3:] = [0.4, -0.3, 0.8]
+    model = pinlin.linearize(scene, q=rest.operating_point.q, v=v)
+    np.testing.assert_array_equal(rest.A[:nz, :nz], 0.0)
+    assert np.abs(model.A[:nz, :nz]).max() > 0.1
+    np.testing.assert_array_equal(model.A[:nz, nz:], np.eye(nz))
+
+
+def test_welded_floating_four_bar_moves_as_the_fixed_four_bar():
+    """The four-bar on a floating base welded to the world where it stands, at the fixed
+    four-bar's moving state (base at rest): the same A, B, f0 as the fixed-base model, which
+    the stacked analytic kernels compute (the floating one takes the manifold path). Measured
+    1.4e-12 of max |A| apart (the manifold differences' error); tolerance 1e-10."""
+    data = tomllib.loads((URDF_DIR / "four_bar.toml").read_text())
+    data["urdf"] = str(URDF_DIR / data["urdf"])
+    fixed_scene = pinlin.Scene.from_dict(data)
+    rest = pinlin.linearize(fixed_scene)
+    q = rest.operating_point.q
+    system = fixed_scene.system
+    G = system.constraints.jacobian(q)
+    v = np.linalg.svd(G)[2][-1] * 2.0        # a consistent velocity (nullspace of Phi_q)
+    u = np.array([0.7])
+    fixed = pinlin.linearize(fixed_scene, q=q, v=v, u=u)
+    data.update(base="free", contacts=[{"name": "ground", "frame": "ground", "type": "weld"}])
+    scene = pinlin.Scene.from_dict(data)
+    base = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+    free = pinlin.linearize(scene, q=np.concatenate([base, q]), v=np.concatenate([np.zeros(6), v]),
+                            u=u)
+    assert free.state_names == fixed.state_names
+    scale = np.abs(fixed.A).max()
+    np.testing.assert_allclose(free.A, fixed.A, rtol=0, atol=1e-10 * scale)
+    np.testing.assert_allclose(free.B, fixed.B, rtol=0, atol=1e-9 * np.abs(fixed.B).max())
+    np.testing.assert_allclose(free.f0, fixed.f0, rtol=0, atol=1e-9 * np.abs(fixed.f0).max())
+
+
+@pytest.mark.parametrize("name", ["four_bar", "slider_crank", "delta", "five_bar"])
+def test_manifold_path_equals_the_revolute_kernels(name):
+    """On revolute mechanisms both halves of Phi_qq agree: the manifold path (differences
+    along the mechanism, module docstring) gives the analytic kernels' model to the
+    differences' error: measured 2e-14 (slider-crank) to 9e-13 (five-bar) of max |A|;
+    tolerance 1e-10."""
+    scene = pinlin.Scene.resolve(name)
+    system = scene.system
+    rng = np.random.default_rng(5)
+    model = pinlin.linearize(scene, v=rng.uniform(-2.0, 2.0, system.nv),
+                             u=rng.uniform(-1.0, 1.0, len(system.actuated)))
+    op = model.operating_point
+    from pinlin.assembly import partition
+
+    part = partition(system, op.q, system.constraints.jacobian(op.q))
+    G = system.constraints.jacobian(op.q)[part.rows]
+    A, B, f0, *_ = moving_manifold.model(system, op, part, G)
+    np.testing.assert_allclose(A, model.A, rtol=0, atol=1e-10 * np.abs(model.A).max())
+    np.testing.assert_allclose(B, model.B, rtol=0, atol=1e-10 * np.abs(model.B).max())
+    np.testing.assert_array_equal(f0, model.f0)
+
+
+@pytest.mark.parametrize("kwargs", [{"formulation": "penalty"}, {"derivatives": "fd5"},
+                                    {"formulation": "canonical"}])
+def test_what_standing_robots_in_motion_do_not_support_yet(kwargs):
+    scene = pinlin.Scene.resolve("standing_box")
+    with pytest.raises(pinlin.ModelError, match="not supported"):
+        pinlin.linearize(scene, v=np.zeros(6), **kwargs)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_standing_trajectory_points_are_single_calls(workers):
+    """solo12 standing, its joints swept and moving: each point of linearize_trajectory is the
+    single linearize at its assembled configuration with the same independent coordinates
+    (named in the scene: a trajectory freezes point 0's, a single call would choose its
+    own), in one process and in two. Not bit for bit: the single call anchors the feet where
+    traj.q[k] puts them, which the trajectory's assembly closed to 1e-12 m, so the manifold
+    differences (step 1e-4, rounding ~eps |f| / h) run on a minutely different curve;
+    measured 1.6e-12 of max |A| apart, tolerance 1e-10."""
+    data = tomllib.loads((URDF_DIR / "solo12_standing.toml").read_text())
+    scene = pinlin.Scene.from_dict(data)
+    system = scene.system
+    rest = pinlin.linearize(scene)
+    data["operating_point"] = {"independent": list(rest.info["independent"])}
+    scene = pinlin.Scene.from_dict(data)
+    z = [system.coordinate_names.index(c) for c in rest.info["independent"]]
+    rng = np.random.default_rng(6)
+    N = 4
+    Q = np.empty((N, system.nq))
+    for k in range(N):
+        dq = np.zeros(system.nv)
+        dq[z] = 0.03 * k
+        Q[k] = pin.integrate(system.model, rest.operating_point.q, dq)
+    V = rng.uniform(-0.5, 0.5, (N, system.nv))
+    U = rest.operating_point.u + rng.uniform(-0.2, 0.2, (N, len(system.actuated)))
+    traj = pinlin.linearize_trajectory(scene, Q, V, U, workers=workers)
+    for k in range(N):
+        single = pinlin.linearize(scene, q=traj.q[k], v=V[k], u=U[k])
+        assert single.state_names == traj.state_names
+        np.testing.assert_allclose(traj.A[k], single.A, rtol=0,
+                                   atol=1e-10 * np.abs(single.A).max())
+        np.testing.assert_allclose(traj.B[k], single.B, rtol=0,
+                                   atol=1e-10 * np.abs(single.B).max())
+        np.testing.assert_allclose(traj.f0[k], single.f0, rtol=0,
+                                   atol=1e-10 * np.abs(single.f0).max())
