@@ -72,6 +72,26 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/constraint_derivatives.py", "    return X * upper + (X * strict).T",
         "    return X.T * upper + (X.T * strict).T",
         "the batched point-loop stiffness takes the descendant's axis for the pair's ancestor"),
+    "moving_base_without_kinematic_block": (
+        "pinlin/formulations/moving_manifold.py",
+        "    if N is not None:\n        A[:nz, :nz] = (N @ R)[z]\n", "",
+        "a standing robot at a moving state without the base's -1/2 ad(v0) R upper block"),
+    "moving_weld_acceleration_without_cross_term": (
+        "pinlin/constraint_derivatives.py",
+        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular - al2\n"
+        "                                    - np.cross(d, w2))",
+        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular"
+        " - al2)",
+        "a weld's rotation-row acceleration without -(w1 - w2) x w2"),
+    "moving_manifold_w_sign": (
+        "pinlin/formulations/moving_manifold.py",
+        "        W[dep] = -np.linalg.solve(G[:, dep], dvel[rows])",
+        "        W[dep] = np.linalg.solve(G[:, dep], dvel[rows])",
+        "the velocity's variation W along a standing robot's motion with its sign flipped"),
+    "moving_manifold_off_manifold": (
+        "pinlin/formulations/moving_manifold.py",
+        "            if len(dep):\n                q = _on_manifold(system, q, rows, dep)\n", "",
+        "differences of the constraint acceleration on the tangent line, off the manifold"),
     "hessian_base_symmetrized": (
         "pinlin/constraint_derivatives.py", "        sym[block, block] = out.T[block, block]",
         "        pass",
