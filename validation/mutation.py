@@ -76,22 +76,21 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/formulations/moving_manifold.py",
         "    if N is not None:\n        A[:nz, :nz] = (N @ R)[z]\n", "",
         "a standing robot at a moving state without the base's -1/2 ad(v0) R upper block"),
-    "moving_weld_acceleration_without_cross_term": (
+    "moving_weld_acceleration_al2_sign": (
         "pinlin/constraint_derivatives.py",
-        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular - al2\n"
-        "                                    - np.cross(d, w2))",
-        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular"
-        " - al2)",
-        "a weld's rotation-row acceleration without -(w1 - w2) x w2"),
+        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular - al2\n",
+        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular + al2\n",
+        "a weld loop's rotation-row acceleration adds the second frame's angular acceleration"),
     "moving_manifold_w_sign": (
         "pinlin/formulations/moving_manifold.py",
         "        W[dep] = -np.linalg.solve(G[:, dep], dvel[rows])",
         "        W[dep] = np.linalg.solve(G[:, dep], dvel[rows])",
         "the velocity's variation W along a standing robot's motion with its sign flipped"),
-    "moving_manifold_off_manifold": (
-        "pinlin/formulations/moving_manifold.py",
-        "            if len(dep):\n                q = _on_manifold(system, q, rows, dep)\n", "",
-        "differences of the constraint acceleration on the tangent line, off the manifold"),
+    "moving_weld_velocity_frame1_only": (
+        "pinlin/constraint_derivatives.py",
+        "            vel[row + 3:row + 6] = d\n",
+        "            vel[row + 3:row + 6] = v1.angular\n",
+        "a weld loop's rotation-row velocity without the second frame's"),
     "hessian_base_symmetrized": (
         "pinlin/constraint_derivatives.py", "        sym[block, block] = out.T[block, block]",
         "        pass",

@@ -22,9 +22,10 @@ of Lie-group joints (X_j X_k Phi != X_k X_j Phi) and the weld rows' log3:
 d(Phi_q v0)/dq R and c_q R are derivatives along the constraint manifold: five-point central
 differences (step :data:`STEP`) of the constraint velocity and acceleration
 (:func:`pinlin.constraint_derivatives.motion_rows`: frame velocities and accelerations of one
-``forwardKinematics(q, v0, a0)``) along the curves q(s) through q0 with tangent R e_i, each
-point assembled by Newton on the dependent coordinates to rounding (the weld rows' second
-derivative is exact on the manifold only). c_v is exact by central differences in v of unit
+``forwardKinematics(q, v0, a0)``) along the curves q(s) through q0 with tangent R e_i. With
+welds each point is assembled by Newton on the dependent coordinates to rounding (the weld
+rows' second derivative is exact on the manifold only); point rows are exact anywhere, and
+the tangent line q0 (+) s R e_i, which has the same derivative at s = 0, serves. c_v is exact by central differences in v of unit
 step: gamma is quadratic in v. K (with the geometric stiffness -lam0^T Phi_qq, its Lie-group
 blocks exact), C and M are Pinocchio's analytic derivatives
 (:func:`pinlin.derivatives.second_order_terms`).
@@ -97,13 +98,15 @@ def manifold_derivatives(system, op: OperatingPoint, part: Partition, R: np.ndar
     cons, model = system.constraints, system.model
     rows, dep = np.asarray(part.rows, dtype=int), np.asarray(part.dependent, dtype=int)
     nz = R.shape[1]
+    # Point rows are exact off the manifold too: there the tangent line gives the derivative.
+    reassemble = cons.has_welds and len(dep) > 0
     dvel = np.zeros((cons.size, nz))
     dacc = np.zeros((cons.size, nz))
     weights = {-2: 1.0, -1: -8.0, 1: 8.0, 2: -1.0}
     for i in range(nz):
         for k, w in weights.items():
             q = pin.integrate(model, op.q, (k * STEP) * R[:, i])
-            if len(dep):
+            if reassemble:
                 q = _on_manifold(system, q, rows, dep)
             vel, acc = motion_rows(cons, q, op.v, op.a)
             dvel[:, i] += w * vel
