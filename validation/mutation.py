@@ -78,8 +78,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "a standing robot at a moving state without the base's -1/2 ad(v0) R upper block"),
     "moving_weld_acceleration_al2_sign": (
         "pinlin/constraint_derivatives.py",
-        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular - al2\n",
-        "            acc[row + 3:row + 6] = (pin.getFrameAcceleration(kin, kd, f1, LWA).angular + al2\n",
+        "LWA).angular - al2\n                                    - _cross(d, w2))",
+        "LWA).angular + al2\n                                    - _cross(d, w2))",
         "a weld loop's rotation-row acceleration adds the second frame's angular acceleration"),
     "moving_manifold_w_sign": (
         "pinlin/formulations/moving_manifold.py",
