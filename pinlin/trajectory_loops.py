@@ -43,7 +43,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -56,7 +56,7 @@ from .derivatives import resolve_steps
 from .exceptions import ModelError, PinlinError
 from .formulations import moving_batch
 from .formulations.constrained import constrained_effects
-from .formulations.independent import output_matrices
+from .formulations.independent import output_stack
 from .formulations.motion import linearize_moving, refuse_unsupported, state_at
 from .system import System
 
@@ -304,7 +304,9 @@ def _fill_block(system: System, plan: lk.ClosurePlan, arrays: Mapping[str, np.nd
     J = arrays.get("J")  # the closure frames' Jacobians from the assembly, when it had them
     st = moving_batch.states(system, plan, Q, V, arrays["u"][lo:hi], rows,
                              None if J is None else J[lo:hi])
-    mats = moving_batch.models(system, plan, st, rows, z, dep)
+    C, y = arrays.get("C"), arrays.get("y")
+    frames = tuple(fid for _, fid in system.outputs.frames) if y is not None else ()
+    mats = moving_batch.models(system, plan, st, rows, z, dep, frames)
     arrays["A"][lo:hi] = mats.A
     arrays["B"][lo:hi] = mats.B
     arrays["f0"][lo:hi] = mats.f0
@@ -312,11 +314,9 @@ def _fill_block(system: System, plan: lk.ClosurePlan, arrays: Mapping[str, np.nd
     arrays["acc"][lo:hi] = st.a
     arrays["lam"][lo:hi] = st.lam
     arrays["dv"][lo:hi] = np.linalg.norm(st.correction, axis=1)
-    C, y = arrays.get("C"), arrays.get("y")
-    if y is not None:
-        Cout = np.empty((hi - lo, y.shape[1], 2 * system.nv))
-        for k in range(hi - lo):
-            Cout[k], _, _, y[lo + k] = output_matrices(system, _State(st.q[k], st.v[k]))
+    if y is not None:  # the output frames from the models' kinematics (output_matrices')
+        Cout, y[lo:hi] = output_stack(system, st.q, st.v, mats.frame_jacobians,
+                                      mats.frame_positions)
         if C is not None:
             C[lo:hi] = moving_batch.reduce_outputs(Cout, mats.R, mats.W)
     bad = np.zeros(hi - lo, dtype=bool)
@@ -328,11 +328,6 @@ def _fill_block(system: System, plan: lk.ClosurePlan, arrays: Mapping[str, np.nd
         k = lo + int(np.flatnonzero(bad)[0])
         raise ModelError(f"trajectory point {k}: scene '{system.scene.name}': the linear "
                          "model has NaN or inf; a model with NaN or inf is never returned")
-
-
-class _State(NamedTuple):
-    q: np.ndarray
-    v: np.ndarray
 
 
 def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,

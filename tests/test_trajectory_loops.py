@@ -71,6 +71,8 @@ def test_each_point_is_the_single_model_at_its_state(name, seed):
             ours, ref = getattr(traj, key)[k], getattr(single, key)
             np.testing.assert_allclose(ours, ref, rtol=0, atol=tol * max(np.abs(ref).max(), 1))
         op = single.operating_point
+        # Output values: frame positions and joint values from the same kinematics, exactly.
+        np.testing.assert_allclose(traj.y[k], op.y, rtol=0, atol=1e-15 * np.abs(op.y).max())
         np.testing.assert_allclose(traj.v[k], op.v, rtol=0, atol=tol * np.abs(V[k]).max())
         np.testing.assert_allclose(traj.a[k], op.a, rtol=0, atol=tol * np.abs(op.a).max())
         np.testing.assert_allclose(traj.lam[k], op.lam, rtol=0,

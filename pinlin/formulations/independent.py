@@ -58,6 +58,29 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
     return C, np.zeros((p, nu)), spec.names, y0
 
 
+def output_stack(system: System, Q: np.ndarray, V: np.ndarray, frame_jacobians: np.ndarray,
+                 frame_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`output_matrices`' C and y0 at N points (N, p, 2nv) and (N, p) from the output
+    frames' LOCAL_WORLD_ALIGNED Jacobians (N, F, 6, nv) and positions (N, F, 3) [m] there, in
+    the order of ``system.outputs.frames`` (the same numbers, computed by the caller's own
+    kinematics pass)."""
+    spec = system.outputs
+    N, nv = V.shape
+    C = np.zeros((N, len(spec.names), 2 * nv))
+    y = np.zeros((N, len(spec.names)))
+    if spec.state_rows:
+        model, neutral = system.model, pin.neutral(system.model)
+        X = np.concatenate([np.array([pin.difference(model, neutral, q) for q in Q]), V],
+                           axis=1)
+        for row, col in spec.state_rows:
+            C[:, row, col] = 1.0
+            y[:, row] = X[:, col]
+    for i, (row, _) in enumerate(spec.frames):
+        C[:, row:row + 3, :nv] = frame_jacobians[:, i, :3]
+        y[:, row:row + 3] = frame_positions[:, i]
+    return C, y
+
+
 def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
                           step: float | Mapping[str, float] | None = None,
                           mass_inverse: np.ndarray | None = None, estimate_error: bool = True

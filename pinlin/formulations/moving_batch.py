@@ -150,6 +150,8 @@ class Models(NamedTuple):
     Attributes:
         A: (N, 2nz, 2nz); B: (N, 2nz, nu); f0: (N, 2nz).
         R: (N, nv, nz) the velocity projection; W: (N, nv, nz) its variation along v.
+        frame_jacobians, frame_positions: (N, F, 6, nv) LOCAL_WORLD_ALIGNED Jacobians and
+            (N, F, 3) positions [m] of the frames :func:`models` was asked for, else None.
     """
 
     A: np.ndarray
@@ -157,12 +159,16 @@ class Models(NamedTuple):
     f0: np.ndarray
     R: np.ndarray
     W: np.ndarray
+    frame_jacobians: np.ndarray | None = None
+    frame_positions: np.ndarray | None = None
 
 
 def models(system, plan: lk.ClosurePlan, st: Stack, rows: np.ndarray, z: np.ndarray,
-           dep: np.ndarray) -> Models:
+           dep: np.ndarray, frames: tuple[int, ...] = ()) -> Models:
     """The models at the states ``st`` (:func:`states`) in the partition (rows, z, dep)
-    (module docstring).
+    (module docstring); ``frames``: frame ids whose Jacobians and positions to read from the
+    same kinematics (``computeRNEADerivatives`` leaves the joint Jacobians and placements of
+    each point in the data: the numbers ``computeJointJacobians`` gives, bit for bit).
 
     Raises:
         numpy.linalg.LinAlgError: a KKT matrix or Phi_d is singular.
@@ -172,10 +178,15 @@ def models(system, plan: lk.ClosurePlan, st: Stack, rows: np.ndarray, z: np.ndar
     nz = len(z)
     K = np.empty((N, nv, nv))
     C = np.empty((N, nv, nv))
+    Jf = np.empty((N, len(frames), 6, nv)) if frames else None
+    pf = np.empty((N, len(frames), 3)) if frames else None
     for k in range(N):
         dq, dv, _ = pin.computeRNEADerivatives(model, data, st.q[k], st.v[k], st.a[k])
         K[k] = dq
         C[k] = dv
+        for i, fid in enumerate(frames):
+            Jf[k, i] = pin.getFrameJacobian(model, data, fid, lk.LWA)
+            pf[k, i] = pin.updateFramePlacement(model, data, fid).translation
     diagonal = np.arange(nv)
     K[:, diagonal, diagonal] += system.stiffness
     C[:, diagonal, diagonal] += system.damping
@@ -210,7 +221,7 @@ def models(system, plan: lk.ClosurePlan, st: Stack, rows: np.ndarray, z: np.ndar
     B = np.zeros((N, 2 * nz, nu))
     B[:, nz:] = F_u[:, z]
     f0 = np.concatenate([st.v[:, z], st.a[:, z]], axis=1)
-    return Models(A, B, f0, R, W)
+    return Models(A, B, f0, R, W, Jf, pf)
 
 
 def reduce_outputs(Cout: np.ndarray, R: np.ndarray, W: np.ndarray) -> np.ndarray:
