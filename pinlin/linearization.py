@@ -36,6 +36,7 @@ from .formulations.motion import (
     linearize_moving_penalty,
     moving_point,
     refuse_unsupported,
+    singular_dynamics,
 )
 from .linear_model import LinearModel
 from .operating_point import (
@@ -302,11 +303,15 @@ def linearize(scene: Scene | System | str | Path, *,
     independent = isinstance(form, Independent)
     if state is not None and system.constraints:
         refuse_unsupported(system, form.name, getattr(form, "basis", None), deriv.name)
-        op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state)
-        assert cp is not None
-        model = (linearize_moving(system, op, cp, **numeric) if independent else
-                 linearize_moving_penalty(system, op, cp, alpha=form.alpha, mu=form.mu,
-                                          omega=form.omega))
+        try:
+            op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
+                                             state=state)
+            assert cp is not None
+            model = (linearize_moving(system, op, cp, **numeric) if independent else
+                     linearize_moving_penalty(system, op, cp, alpha=form.alpha, mu=form.mu,
+                                              omega=form.omega))
+        except np.linalg.LinAlgError:
+            raise singular_dynamics(system) from None
     elif state is not None:
         if not independent:
             resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state,

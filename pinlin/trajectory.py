@@ -316,9 +316,10 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
     an open chain comes from one ``pin.computeABADerivatives`` per point written straight
     into the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize` per point.
 
-    A mechanism (loops, mimic couplings, a fixed base's contacts; fixed base, point loops;
-    fd3/fd5 point by point) is assembled point by point, each from the one before where q[k]
-    does not close its loops, its velocities projected onto the nullspace of Phi_q, and
+    A mechanism (loops, mimic couplings, contacts; weld loops, Lie-group joints and a
+    standing robot's floating base, and fd3/fd5, point by point) is assembled point by
+    point, each from the one before where q[k] does not close its loops, its velocities
+    projected onto the nullspace of Phi_q, and
     every point is linearized in the independent coordinates chosen at point 0
     (:mod:`pinlin.trajectory_loops`): point k is what :func:`pinlin.linearize` gives at
     ``q=model.q[k], v=v[k], u=u[k]`` (the assembled configuration) whenever that call chooses

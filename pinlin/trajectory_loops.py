@@ -57,7 +57,7 @@ from .exceptions import ModelError, PinlinError
 from .formulations import moving_batch
 from .formulations.constrained import constrained_effects
 from .formulations.independent import output_stack
-from .formulations.motion import linearize_moving, refuse_unsupported, state_at
+from .formulations.motion import linearize_moving, refuse_unsupported, singular_dynamics, state_at
 from .system import System
 
 #: Condition of Phi_d at which a trajectory's frozen partition is refused (the limit at which
@@ -347,6 +347,8 @@ def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: 
                                      estimate_error=False)
         except PinlinError as exc:
             raise _at_point(exc, k) from None
+        except np.linalg.LinAlgError:
+            raise _at_point(singular_dynamics(system), k) from None
         A[k] = model.A
         B[k] = model.B
         f0[k] = model.f0

@@ -108,7 +108,7 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
         M0 = system.mass_matrix(q0)
     tau = system.applied_force(q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
     tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
-    zn = ", ".join(system.coordinate_names[i] for i in part.independent)
+    zn = ", ".join(system.coordinate_names[i] for i in part.independent) or "none (held)"
     closed = "contacts held" if cons.contacts and not system.scene.loops else "loops closed"
     notes = [f"state given (solve = \"none\"), {closed}: independent coordinates {zn}; "
              f"the velocity given was projected onto the constraint nullspace (correction "
@@ -321,6 +321,15 @@ def _gamma_derivative(system, op: OperatingPoint) -> np.ndarray:
     return out
 
 
+def singular_dynamics(system) -> ModelError:
+    """The error for a constrained state whose KKT matrix [[M, -G^T], [G, 0]] is singular:
+    some motion the constraints allow moves no inertia (LAPACK's exact singularity)."""
+    return ModelError(f"scene '{system.scene.name}': the constrained dynamics are singular at "
+                      "this state (the matrix [[M, -Phi_q^T], [Phi_q, 0]]: a motion the loops and "
+                      "contacts allow moves no inertia); give the bodies the independent "
+                      "coordinates move inertia (or the joints armature)")
+
+
 def refuse_unsupported(system, formulation: str, basis: str | None, derivatives: str) -> None:
     """What this module cannot do yet, as a clear error."""
     if derivatives != "analytic" and formulation != "independent":
@@ -347,4 +356,4 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
 
 
 __all__ = ["linearize_moving", "linearize_moving_penalty", "moving_point",
-           "project_velocity", "refuse_unsupported", "state_at"]
+           "project_velocity", "refuse_unsupported", "singular_dynamics", "state_at"]

@@ -32,13 +32,15 @@ differences in v of unit step: gamma is quadratic in v. K (with the geometric st
 -lam0^T Phi_qq, its Lie-group blocks exact), C and M are Pinocchio's analytic derivatives
 (:func:`pinlin.derivatives.second_order_terms`).
 
-Accuracy: truncation ~h^4 |f^(5)| / 30 and rounding ~eps |f| / h. The step 1e-4 is set by the
-most curved case measured, two spatial branches welded tip to tip near a singular position
-(Phi_d's condition 293), whose truncation at h = 1e-3 was 4e-5 of the terms and at 1e-4 below
-the rounding; on the bundled mechanisms the path agrees with the analytic kernels to 2e-14..
-9e-13 of max |A|. tests/test_moving_standing.py checks the model against central differences of
-Pinocchio's ``constraintDynamics`` on the manifold in this chart, and against the revolute
-path of :mod:`pinlin.formulations.motion` on mechanisms.
+Accuracy: truncation ~h^4 |f^(5)| / 30 and rounding ~eps |f| / h. Along column i the curve's
+parameter moves q by s |R e_i|, so its step is :data:`STEP` / max(1, |R e_i|): no coordinate
+moves by more than 1e-4 (near a singular position a dependent joint turns much faster than
+z: 35x on two spatial branches welded tip to tip, whose model is then 1e-10..4e-10 of
+max |A| from five-point differences of Pinocchio's dynamics, where a fixed step of 1e-4 in
+s left truncation of ~5e-8). On the bundled mechanisms the path agrees with the analytic
+kernels to 9e-15..1.5e-12 of max |A|. tests/test_moving_standing.py checks the model
+against central differences of Pinocchio's ``constraintDynamics`` on the manifold in this
+chart, and against the revolute path of :mod:`pinlin.formulations.motion` on mechanisms.
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ from ..operating_point import OperatingPoint
 STEP = 1e-4
 #: Newton iterations of a point of a difference curve before it is called a failure.
 MAX_ITER = 20
+#: Largest max |Phi| [m or rad] a point of a difference curve may keep: Newton reaches
+#: ~1e-16 on the bundled robots; a residual r moves the terms by ~r / (12 h) relative.
+CLOSURE_TOL = 1e-13
 
 
 def applies(system) -> bool:
@@ -69,7 +74,12 @@ def applies(system) -> bool:
 
 def _on_manifold(system, q: np.ndarray, rows: np.ndarray, dep: np.ndarray) -> np.ndarray:
     """q moved on its dependent coordinates until the constraints on ``rows`` hold to rounding
-    (Newton, z held: until a step no longer reduces max |Phi|)."""
+    (Newton, z held: until a step no longer reduces max |Phi|).
+
+    Raises:
+        AssemblyError: max |Phi| stays above :data:`CLOSURE_TOL` (a point of a difference
+            curve near a singular position): its derivatives would not be reliable.
+    """
     cons, model = system.constraints, system.model
     step = np.zeros(system.nv)
     phi, jac = cons.residual_and_jacobian(q)
@@ -83,13 +93,14 @@ def _on_manifold(system, q: np.ndarray, rows: np.ndarray, dep: np.ndarray) -> np
         phi_t, jac_t = cons.residual_and_jacobian(trial)
         worst = np.abs(phi_t).max(initial=0.0)
         if not worst < best:
-            return q
+            break
         q, phi, jac, best = trial, phi_t, jac_t, worst
-    if best > 1e-10:
-        raise AssemblyError(f"scene '{system.scene.name}': the constraints do not close near the "
-                            f"operating point (residual {best:.3g}) while differencing the "
-                            "constraint acceleration along the mechanism", phi,
-                            cons.row_names)
+    if not best <= CLOSURE_TOL:
+        raise AssemblyError(f"scene '{system.scene.name}': the constraints do not close to "
+                            f"rounding near the operating point (residual {best:.3g} m or rad, "
+                            f"limit {CLOSURE_TOL:g}) while differencing the constraint "
+                            "acceleration along the mechanism: too close to a singular "
+                            "position for the model at this state", phi, cons.row_names)
     return q
 
 
@@ -106,26 +117,33 @@ def manifold_derivatives(system, op: OperatingPoint, part: Partition, R: np.ndar
     dacc = np.zeros((cons.size, nz))
     weights = {-2: 1.0, -1: -8.0, 1: 8.0, 2: -1.0}
     for i in range(nz):
+        # The curve's parameter moves q by s |R e_i|: the step moves no coordinate by more
+        # than STEP (a dependent joint may turn 35x faster than z near a singular position).
+        h = STEP / max(1.0, float(np.abs(R[:, i]).max()))
         for k, w in weights.items():
-            q = pin.integrate(model, op.q, (k * STEP) * R[:, i])
+            q = pin.integrate(model, op.q, (k * h) * R[:, i])
             if reassemble:
                 q = _on_manifold(system, q, rows, dep)
             vel, acc = motion_rows(cons, q, op.v, op.a)
             dvel[:, i] += w * vel
             dacc[:, i] += w * acc
-    return dvel / (12 * STEP), dacc / (12 * STEP)
+        dvel[:, i] /= 12 * h
+        dacc[:, i] /= 12 * h
+    return dvel, dacc
 
 
 def velocity_derivative(system, op: OperatingPoint) -> np.ndarray:
-    """c_v = d gamma/dv at (q0, v0) (m x nv): central differences of unit step, exact for
-    gamma, which is quadratic in v (the a0 part cancels)."""
+    """c_v = d gamma/dv at (q0, v0) (m x nv): central differences, exact for gamma, which is
+    quadratic in v (the a0 part cancels), with the step max(1, |v0|) so that rounding stays
+    at eps relative to the terms at any speed."""
     cons = system.constraints
     out = np.zeros((cons.size, system.nv))
+    h = max(1.0, float(np.abs(op.v).max(initial=0.0)))
     e = np.zeros(system.nv)
     for j in range(system.nv):
-        e[j] = 1.0
-        out[:, j] = 0.5 * (motion_rows(cons, op.q, op.v + e, op.a)[1]
-                           - motion_rows(cons, op.q, op.v - e, op.a)[1])
+        e[j] = h
+        out[:, j] = (motion_rows(cons, op.q, op.v + e, op.a)[1]
+                     - motion_rows(cons, op.q, op.v - e, op.a)[1]) / (2.0 * h)
         e[j] = 0.0
     return out
 
@@ -166,5 +184,5 @@ def model(system, op: OperatingPoint, part: Partition, G: np.ndarray
     return A, B, f0, R, W, S
 
 
-__all__ = ["MAX_ITER", "STEP", "applies", "manifold_derivatives", "model",
+__all__ = ["CLOSURE_TOL", "MAX_ITER", "STEP", "applies", "manifold_derivatives", "model",
            "velocity_derivative"]
