@@ -327,16 +327,16 @@ closure check of all given points from frame positions, then per point Newton fr
 predicted along the manifold's tangent, about 3 kinematics passes of one
 ``computeJointJacobians`` and a frame Jacobian per closure frame each, and a LAPACK ``gesv``
 per step; the frame Jacobians of its last pass are kept for the model), then ``crba``,
-``nonLinearEffects`` and ``computeRNEADerivatives`` (:mod:`pinlin.formulations.moving_batch`).
+``nonLinearEffects`` and ``computeRNEADerivatives`` (:mod:`pinlin.formulations.moving_batch`;
+the output frames' Jacobians and positions are read from the data that last call leaves).
 Everything else runs on stacks of 64 points: the projection, gamma, Phi_qq[v, .],
 Phi_qq[a, .], the geometric stiffness and d gamma / dq *analytically* from the frame
 Jacobians (:mod:`pinlin.loop_kernels`; formerly 4 nv evaluations of gamma by five-point
 differences), the two KKT solves, R, W and A, B. What is left is mostly the serial assembly
-(about half of a point: 3-4 kinematics passes and their small numpy calls, 20-25 us each for
-the delta's six closure frames) and the per-point frame outputs (one kinematics pass more
-each). The Newton's final Jacobians now serve the model pass; frame positions read from one
-``data.J`` access instead of F calls, and the outputs' frames taken in the assembly's last
-pass, would be the next steps toward 2x."""
+(about half of a point: 3 kinematics passes and their small numpy calls, about 10 us each for
+the delta's six closure frames, of which the Pinocchio calls are ~5 us: a frame Jacobian
+costs 0.4 us, so reading them from one ``data.J`` access would save little) and the numpy
+calls on small stacks; 2x looks out of reach from Python."""
 
 
 NOTES = """## Reading these figures
