@@ -255,7 +255,7 @@ def linearize(scene: Scene | System | str | Path, *,
             the independent formulation (partitioned basis; analytic, fd3 or fd5 derivatives)
             or the penalty formulation (analytic), loops closed and v0 projected; floating
             bases on contacts and weld loops in the independent formulation (partitioned
-            basis, analytic derivatives).
+            basis, analytic derivatives), and on point contacts in the penalty formulation.
         allow_non_equilibrium: Override the scene's ``operating_point.allow_non_equilibrium``.
         basis: Independent coordinates of a constrained system (independent formulation only):
             ``"partitioned"`` (the independent joints z, the default) or ``"orthonormal"`` (an

@@ -91,6 +91,11 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "            vel[row + 3:row + 6] = d\n",
         "            vel[row + 3:row + 6] = v1.angular\n",
         "a weld loop's rotation-row velocity without the second frame's"),
+    "moving_penalty_base_symmetric": (
+        "pinlin/formulations/motion.py",
+        "    if moving_manifold.applies(system):  # a floating base on point contacts: Phi_qq not",
+        "    if False:  # a floating base on point contacts: Phi_qq not",
+        "a floating base's penalty model at a moving state with a symmetric Phi_qq"),
     "hessian_base_symmetrized": (
         "pinlin/constraint_derivatives.py", "        sym[block, block] = out.T[block, block]",
         "        pass",

@@ -33,10 +33,12 @@ analytically except d gamma / dq, taken by five-point central differences of gam
 1e-3: truncation ~h^4, rounding ~eps |gamma| / h, about 1e-12 relative). Floating bases
 (Lie-group joints) and welds, where Phi_qq is not symmetric, take
 :mod:`pinlin.formulations.moving_manifold`. The orthonormal basis and the canonical
-formulation at a moving state are not supported yet, nor the penalty formulation or numerical
-derivatives for floating bases and welds. tests/test_moving_loops.py checks the model
-against central differences of Pinocchio's own constrained forward dynamics on the
-mechanism.
+formulation at a moving state are not supported yet, nor numerical derivatives for floating
+bases and welds, nor the penalty formulation of welds (in the penalty formulation a floating
+base's point contacts take both halves of Phi_qq from
+:func:`pinlin.formulations.moving_manifold.coordinate_derivatives`).
+tests/test_moving_loops.py checks the model against central differences of Pinocchio's own
+constrained forward dynamics on the mechanism.
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ import pinocchio as pin
 from .. import loop_kernels as lk
 from ..arrays import read_only
 from ..assembly import Partition, assemble_guess, partition, projection
+from ..chart import kinematic_block
 from ..derivatives import second_order_terms
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import ModelError
@@ -281,19 +284,28 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
     pop = OperatingPoint.trusted(**{**op.__dict__, "a": a_p, "lam": lam})
     terms = second_order_terms(system, pop, "analytic")
     C = terms.C if terms.C is not None else np.zeros((nv, nv))
-    jv = cons.jacobian_variation(op.q, op.v)[rows]
-    K_extra = (cons.jacobian_variation(op.q, a_p)[rows] + _gamma_derivative(system, pop)[rows]
-               + 2.0 * mu * omega * jv)
+    if moving_manifold.applies(system):  # a floating base on point contacts: Phi_qq not
+        dvel, dacc = moving_manifold.coordinate_derivatives(system, pop)  # symmetric
+        K_extra = dacc[rows] + 2.0 * mu * omega * dvel[rows]
+        C_extra = moving_manifold.velocity_derivative(system, pop)[rows]
+    else:
+        jv = cons.jacobian_variation(op.q, op.v)[rows]
+        K_extra = (cons.jacobian_variation(op.q, a_p)[rows]
+                   + _gamma_derivative(system, pop)[rows] + 2.0 * mu * omega * jv)
+        C_extra = 2.0 * jv
     S = system.input_matrix
     A, B = penalty_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega,
-                               K_extra=K_extra, C_extra=2.0 * jv)
+                               K_extra=K_extra, C_extra=C_extra)
+    N = kinematic_block(system, op.v)
+    if N is not None:  # Lie-group joints at a moving state (pinlin.chart)
+        A[:nv, :nv] = N
     GtG = G.T @ G
     Cout, D, out_names, y0 = output_matrices(system, pop)
     info = _info(system, pop, cp, "penalty", "analytic", alpha=alpha, mu=mu, omega=omega)
     return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names,
                        M=terms.M + alpha * GtG,
-                       C_damp=C + alpha * G.T @ (2.0 * jv + 2.0 * mu * omega * G),
+                       C_damp=C + alpha * G.T @ (C_extra + 2.0 * mu * omega * G),
                        K=terms.K + alpha * G.T @ (K_extra + omega**2 * G), Bu=S, G=G,
                        operating_point=pop.with_outputs(y0), name=system.scene.name, info=info,
                        f0=np.concatenate([op.v, a_p]))
@@ -345,11 +357,15 @@ def refuse_unsupported(system, formulation: str, basis: str | None, derivatives:
     if moving_manifold.applies(system):
         what = ("a floating-base robot with contacts or loops" if system.base_joint else
                 "a mechanism with Lie-group joints or welds")
-        if formulation != "independent" or derivatives != "analytic":
+        if derivatives != "analytic":
             raise ModelError(f"scene '{system.scene.name}': at a moving state {what} is "
-                             "linearized in the independent formulation with analytic "
-                             "derivatives only (the penalty formulation and fd3/fd5 are not "
+                             "linearized with analytic derivatives only (fd3/fd5 are not "
                              "supported there yet)")
+        if formulation == "penalty" and system.constraints.has_welds:
+            raise ModelError(f"scene '{system.scene.name}': the penalty formulation at a "
+                             "moving state takes point loops and contacts; with weld loops or "
+                             "contacts use the independent formulation (the penalty "
+                             "formulation of welds is not supported there yet)")
         if system.rotation is not None:
             raise ModelError(f"scene '{system.scene.name}': a steadily rotating scene with "
                              "Lie-group joints or welds is not supported at a moving state")

@@ -87,6 +87,25 @@ def manifold_derivatives(system, op: OperatingPoint, part: Partition, R: np.ndar
     return dvel, dacc
 
 
+def coordinate_derivatives(system, op: OperatingPoint) -> tuple[np.ndarray, np.ndarray]:
+    """(d(Phi_q v0)/dq, d(Phi_q a0 + gamma)/dq) (m x nv each) along every tangent coordinate
+    (the penalty formulation, which moves off the manifold): five-point differences of
+    :func:`~pinlin.constraint_derivatives.motion_rows` along q0 (+) s e_j, step :data:`STEP`.
+    Point rows only (a weld's formula holds on the manifold alone)."""
+    cons, model = system.constraints, system.model
+    dvel = np.zeros((cons.size, system.nv))
+    dacc = np.zeros((cons.size, system.nv))
+    e = np.zeros(system.nv)
+    for j in range(system.nv):
+        for k, w in ((-2, 1.0), (-1, -8.0), (1, 8.0), (2, -1.0)):
+            e[j] = k * STEP
+            vel, acc = motion_rows(cons, pin.integrate(model, op.q, e), op.v, op.a)
+            dvel[:, j] += w * vel
+            dacc[:, j] += w * acc
+        e[j] = 0.0
+    return dvel / (12 * STEP), dacc / (12 * STEP)
+
+
 def velocity_derivative(system, op: OperatingPoint) -> np.ndarray:
     """c_v = d gamma/dv at (q0, v0) (m x nv): central differences, exact for gamma, which is
     quadratic in v (the a0 part cancels), with the step max(1, |v0|) so that rounding stays
@@ -139,5 +158,5 @@ def model(system, op: OperatingPoint, part: Partition, G: np.ndarray
     return A, B, f0, R, W, S
 
 
-__all__ = ["STEP", "applies", "manifold_derivatives", "model",
+__all__ = ["STEP", "applies", "coordinate_derivatives", "manifold_derivatives", "model",
            "velocity_derivative"]
