@@ -13,6 +13,7 @@ penalty with the independent formulation) is an :class:`~pinlin.exceptions.Argum
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping
 from os import PathLike
@@ -316,11 +317,12 @@ def linearize(scene: Scene | System | str | Path, *,
         if not independent:
             resolve_operating_point(system, q0, allow_non_equilibrium=allow, state=state,
                                     constrained=True)  # raises: not supported yet
-        Minv = system.mass_inverse(q0, allow_ill_conditioned=ill)
+        Minv, check = _mass_inverse(system, q0, deriv.name, ill)
         op, _ = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
                                         mass_inverse=Minv, allow_ill_conditioned=ill,
                                         state=state)
-        model = linearize_independent(system, op, mass_inverse=Minv, **numeric)
+        model = linearize_independent(system, op, mass_inverse=Minv, check_mass=check,
+                                      **numeric)
     elif system.constraints or not independent \
             or system.scene.operating_point.solve != "inputs":
         op, cp = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
@@ -337,12 +339,29 @@ def linearize(scene: Scene | System | str | Path, *,
                           **numeric)
     else:
         # Shared by the operating point and the model; refuses a singular M (unless ill).
-        Minv = system.mass_inverse(q0, allow_ill_conditioned=ill)
+        Minv, check = _mass_inverse(system, q0, deriv.name, ill)
         op, _ = resolve_operating_point(system, q0, allow_non_equilibrium=allow,
                                         mass_inverse=Minv, allow_ill_conditioned=ill)
-        model = linearize_independent(system, op, mass_inverse=Minv, **numeric)
+        model = linearize_independent(system, op, mass_inverse=Minv, check_mass=check,
+                                      **numeric)
     _warn_inaccurate(model)
     return model
+
+
+def _mass_inverse(system: System, q0: np.ndarray, derivatives: str, ill: bool
+                  ) -> tuple[np.ndarray, bool | None]:
+    """(M(q0)^-1, the check the model still owes it). With analytic derivatives the check
+    waits for the M that the RNEA derivatives give (one ``crba`` less): the model runs
+    :meth:`System.check_mass_inverse` before it uses M^-1 beyond a0 and its derivatives,
+    which an M singular to working precision leaves finite. Otherwise M^-1 comes checked
+    (None)."""
+    if derivatives == "analytic":
+        Minv = system.unchecked_mass_inverse(q0)
+        # A coordinate without inertia leaves inf or NaN on the diagonal: refused now, before
+        # a0 = M^-1 r would spread them (and numpy warn about them).
+        if Minv is not None and math.isfinite(Minv.trace()):
+            return Minv, ill
+    return system.mass_inverse(q0, allow_ill_conditioned=ill), None
 
 
 def _refuse_singular_reduced(model: LinearModel) -> None:

@@ -351,6 +351,21 @@ class System:
         else:  # the spin coordinate is prescribed: invert the block of the other coordinates
             M = self.mass_matrix(q)
             Minv = np.linalg.inv(M) if np.all(np.isfinite(M)) else M
+        return self.check_mass_inverse(q, M, Minv, allow_ill_conditioned=allow_ill_conditioned)
+
+    def unchecked_mass_inverse(self, q: np.ndarray) -> np.ndarray | None:
+        """M(q)^-1 from ``pin.computeMinverse`` before any check (None when rotating): the
+        caller owes :meth:`check_mass_inverse` with the M that its RNEA derivatives give, which
+        saves :meth:`mass_inverse`'s ``crba``. Until checked it may hold inf or NaN."""
+        if self.rotation is not None:
+            return None
+        return pin.computeMinverse(self.model, self.data, q)
+
+    def check_mass_inverse(self, q: np.ndarray, M: np.ndarray, Minv: np.ndarray, *,
+                           allow_ill_conditioned: bool = False) -> np.ndarray:
+        """:meth:`mass_inverse`'s checks of M(q) (only its upper triangle and diagonal are
+        read) and of Minv = M(q)^-1 as computed; returns Minv. Raises as
+        :meth:`mass_inverse`."""
         diag = Minv.diagonal()
         n = diag.size
         if not n:

@@ -83,15 +83,23 @@ def output_stack(system: System, Q: np.ndarray, V: np.ndarray, frame_jacobians: 
 
 def linearize_independent(system: System, op: OperatingPoint, *, derivatives: str = "analytic",
                           step: float | Mapping[str, float] | None = None,
-                          mass_inverse: np.ndarray | None = None, estimate_error: bool = True
-                          ) -> LinearModel:
+                          mass_inverse: np.ndarray | None = None, estimate_error: bool = True,
+                          check_mass: bool | None = None) -> LinearModel:
     """Linear model of an open chain about ``op`` in independent (joint) coordinates.
 
-    ``mass_inverse`` is M(q0)^-1 when the caller has it already.
+    ``mass_inverse`` is M(q0)^-1 when the caller has it already; ``check_mass`` not None says
+    it is unchecked (:meth:`System.unchecked_mass_inverse`): it is checked here against the M
+    of the derivatives, allowing an ill-conditioned M when True.
     """
     nv = system.nv
     terms = second_order_terms(system, op, derivatives, step, estimate_error)
-    Minv = system.mass_inverse(op.q) if mass_inverse is None else mass_inverse
+    if mass_inverse is None:
+        Minv = system.mass_inverse(op.q)
+    elif check_mass is not None:
+        Minv = system.check_mass_inverse(op.q, terms.M, mass_inverse,
+                                         allow_ill_conditioned=check_mass)
+    else:
+        Minv = mass_inverse
     A = system.kinematic_rows.copy()
     moving = kinematic_block(system, op.v)
     if moving is not None:  # Lie-group joints at a moving state (pinlin.chart)
