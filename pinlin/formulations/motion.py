@@ -111,16 +111,21 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
         M0 = system.mass_matrix(q0)
     tau = system.applied_force(q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
     tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
+    # The force left unbalanced once the constraint forces act, M a0: an equilibrium where
+    # nothing moves and it vanishes to the tolerance of an open chain's given state.
+    residual = M0 @ a0
+    equilibrium = not np.any(v) and float(np.abs(residual).max(initial=0.0)) <= tol
     zn = ", ".join(system.coordinate_names[i] for i in part.independent) or "none (held)"
     closed = "contacts held" if cons.contacts and not system.scene.loops else "loops closed"
     notes = [f"state given (solve = \"none\"), {closed}: independent coordinates {zn}; "
              f"the velocity given was projected onto the constraint nullspace (correction "
              f"|dv| = {np.linalg.norm(correction):.3g}); |a0| = {np.linalg.norm(a0):.6g}; "
-             "the model is affine, x' = f0 + A x + B u"]
+             + ("an equilibrium (v0 = 0, |M a0| within the tolerance)" if equilibrium else
+                "the model is affine, x' = f0 + A x + B u")]
     if part.dropped:
         notes.append(f"redundant constraint rows dropped: {', '.join(part.dropped)}")
-    op = OperatingPoint(q=q0, v=v, u=u0, a=a0, residual=M0 @ a0,
-                        equilibrium=False, tolerance=tol, lam=lam, notes=tuple(notes),
+    op = OperatingPoint(q=q0, v=v, u=u0, a=a0, residual=residual,
+                        equilibrium=equilibrium, tolerance=tol, lam=lam, notes=tuple(notes),
                         lam_names=cons.row_names)
     return op, ConstrainedPoint(part, G, st)
 
