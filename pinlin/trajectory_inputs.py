@@ -4,6 +4,7 @@ argument and, for arrays, the first bad row."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
 
@@ -105,6 +106,21 @@ def times(t: object, points: int) -> np.ndarray | None:
     return arr
 
 
+#: Worker processes allowed per CPU available to this process: a pool starts all of them at
+#: once, each with its own copy of the models, so an unbounded count can exhaust the machine.
+WORKERS_PER_CPU = 4
+
+
+def max_workers() -> int:
+    """The largest ``workers`` accepted: :data:`WORKERS_PER_CPU` times the CPUs this process
+    may run on."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        cpus = os.cpu_count() or 1
+    return WORKERS_PER_CPU * max(cpus, 1)
+
+
 def positive_int(name: str, value: object, allow_none: bool = False) -> int | None:
     if value is None and allow_none:
         return None
@@ -139,6 +155,12 @@ def check_options(system: System, derivatives: object,
         resolve_steps(derivatives, step)
     n_workers = positive_int("workers", workers)
     assert n_workers is not None
+    limit = max_workers()
+    if n_workers > limit:
+        raise ArgumentError("workers", f"expected at most {limit} processes "
+                                       f"({WORKERS_PER_CPU} per CPU this process may use; more "
+                                       f"only contend for the cores and memory), got "
+                                       f"{n_workers}")
     n_chunk = positive_int("chunk", chunk, allow_none=True)
     if executor is not None and not isinstance(executor, Executor):
         raise ArgumentError("executor", "expected a concurrent.futures.Executor (for Dask: "
@@ -162,5 +184,5 @@ def check_options(system: System, derivatives: object,
     return n_workers, n_chunk, bool(second_order)
 
 
-__all__ = ["NORM_TOLERANCE", "check_normalized", "check_options", "points", "positive_int",
-           "times"]
+__all__ = ["NORM_TOLERANCE", "check_normalized", "check_options", "max_workers", "points",
+           "positive_int", "times"]

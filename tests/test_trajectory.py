@@ -390,6 +390,9 @@ def _bad_cases():
                    "argument 't': expected 5 times"),
         "workers": ((ur5, q, v, u), {"workers": 0}, pinlin.ArgumentError,
                     "argument 'workers'"),
+        # An unbounded count would fork that many processes at once.
+        "workers_many": ((ur5, q, v, u), {"workers": 10**9}, pinlin.ArgumentError,
+                         "argument 'workers': expected at most"),
         "chunk": ((ur5, q, v, u), {"chunk": 2.5}, pinlin.ArgumentError, "argument 'chunk'"),
         "executor_type": ((ur5, q, v, u), {"executor": "dask"}, pinlin.ArgumentError,
                           "concurrent.futures.Executor"),
