@@ -57,7 +57,8 @@ def discretize(model, dt: float, method: str = "zoh"):
     Raises:
         ArgumentError: ``dt`` not a positive finite number [s], an unknown method, a model
             already discrete, or ``"euler"`` on a model whose states are not [q:...; v:...].
-        ModelError: the model has input-derivative terms (E): discretize its standard form.
+        ModelError: the model has input-derivative terms (E): discretize its standard form;
+            or ``dt`` so long that a discrete matrix overflows (:func:`refuse_overflow`).
     """
     from .linear_model import LinearModel
 
@@ -71,21 +72,41 @@ def discretize(model, dt: float, method: str = "zoh"):
     dt = float(dt)
     n, m = model.B.shape
     f0 = np.zeros(n) if model.f0 is None else model.f0
-    if method == "zoh":
-        aug = np.zeros((n + m + 1, n + m + 1))
-        aug[:n, :n] = model.A
-        aug[:n, n:n + m] = model.B
-        aug[:n, -1] = f0
-        phi = sla.expm(aug * dt)
-        A_d, B_d, f_d = phi[:n, :n], phi[:n, n:n + m], phi[:n, -1]
-    else:
-        A_d, B_d, f_d = _semi_implicit_euler(model, dt, f0)
+    with np.errstate(over="ignore", invalid="ignore"):  # refused below, naming dt
+        if method == "zoh":
+            aug = np.zeros((n + m + 1, n + m + 1))
+            aug[:n, :n] = model.A
+            aug[:n, n:n + m] = model.B
+            aug[:n, -1] = f0
+            phi = sla.expm(aug * dt)
+            A_d, B_d, f_d = phi[:n, :n], phi[:n, n:n + m], phi[:n, -1]
+        else:
+            A_d, B_d, f_d = _semi_implicit_euler(model, dt, f0)
+    refuse_overflow(model.name, dt, method, A_d, B_d, f_d)
     return LinearModel(
         A=A_d, B=B_d, C=model.C, D=model.D, state_names=model.state_names,
         input_names=model.input_names, output_names=model.output_names, F=model.F,
         operating_point=model.operating_point, G=model.G, name=model.name,
         info={**model.info, "discretization": {"method": method, "dt": dt}},
         f0=f_d if model.f0 is not None else None, dt=dt)
+
+
+def refuse_overflow(name: str, dt: float, method: str, A_d: np.ndarray, B_d: np.ndarray,
+                    f_d: np.ndarray) -> None:
+    """ModelError when the discrete matrices (a model's, or stacks with points first) are not
+    finite: dt is too long for the model's fastest growing or fastest mode (exp(lambda dt)
+    overflows, or Euler's powers of dt do), naming dt and, for stacks, the first point."""
+    for label, arr in (("A", A_d), ("B", B_d), ("f0", f_d)):
+        bad = ~np.isfinite(arr)
+        if not bad.any():
+            continue
+        where = ""
+        if arr.ndim == 3 or (arr.ndim == 2 and label == "f0"):
+            where = f" at trajectory point {int(np.argwhere(bad)[0][0])}"
+        raise ModelError(f"model '{name}': discretizing over dt = {dt:g} s ('{method}') "
+                         f"overflows: the discrete {label} has NaN or inf{where} (exp(lambda "
+                         "dt) of a growing mode, or a power of dt, beyond float range); use "
+                         "a shorter dt")
 
 
 def _semi_implicit_euler(model, dt: float, f0: np.ndarray

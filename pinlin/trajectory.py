@@ -229,15 +229,18 @@ class TrajectoryModel:
         Raises:
             ArgumentError: ``dt`` not a positive finite number [s], an unknown method, or
                 models that are already discrete.
+            ModelError: ``dt`` so long that a discrete matrix overflows (naming the point).
         """
-        from .discretization import check_step, stacked_euler, stacked_zoh
+        from .discretization import check_step, refuse_overflow, stacked_euler, stacked_zoh
 
         dt = check_step(dt, method)
         if self.dt:
             raise ArgumentError("model", f"trajectory model '{self.name}' is already discrete "
                                          f"(dt = {self.dt:g} s)")
-        A_d, B_d, f_d = (stacked_zoh if method == "zoh" else stacked_euler)(self.A, self.B,
-                                                                            self.f0, dt)
+        with np.errstate(over="ignore", invalid="ignore"):  # refused below, naming dt
+            A_d, B_d, f_d = (stacked_zoh if method == "zoh" else stacked_euler)(
+                self.A, self.B, self.f0, dt)
+        refuse_overflow(self.name, dt, method, A_d, B_d, f_d)
         for arr in (A_d, B_d, f_d):
             arr.setflags(write=False)
         return TrajectoryModel.trusted(**{

@@ -192,6 +192,9 @@ def test_discretize_refuses_what_it_cannot_do():
         disc.discretize(0.01)
     with pytest.raises(pinlin.ArgumentError, match="is discrete"):
         pinlin.modal(disc)
+    for method in ("zoh", "euler"):  # a finite dt whose matrices overflow: named, refused
+        with pytest.raises(pinlin.ModelError, match=r"dt = 1e\+300 s .* overflows"):
+            model.discretize(1e300, method)
     canon = pinlin.linearize("four_bar", formulation="canonical")
     with pytest.raises(pinlin.ArgumentError, match="use 'zoh'"):
         canon.discretize(0.01, "euler")

@@ -351,6 +351,9 @@ def test_discretize_is_the_per_point_discretization(method):
     for bad in (0.0, -1.0, float("nan"), "0.1", True):
         with pytest.raises(pinlin.ArgumentError, match="argument 'dt'"):
             traj.discretize(bad)
+    # A finite dt whose matrices overflow: refused (a saved file would not load back).
+    with pytest.raises(pinlin.ModelError, match=r"dt = 1e\+300 s .* at trajectory point 0"):
+        traj.discretize(1e300, method)
 
 
 # --------------------------------------------------------------------------------------------
