@@ -25,6 +25,10 @@ from .exceptions import ArgumentError
 
 #: Default penalty parameters: alpha [kg or kg*m^2 per row unit^2], Omega [rad/s], mu [-].
 PENALTY_DEFAULTS = {"alpha": 1e7, "omega": 10.0, "mu": 1.0}
+#: Largest alpha, alpha Omega^2 and 2 alpha mu Omega accepted (the penalty formulation keeps
+#: its accuracy to alpha = 1e14, validation/reports/penalty_conditioning.md; beyond 1e100
+#: products with the mass matrix and Phi_q^T Phi_q approach float overflow).
+PENALTY_LIMIT = 1e100
 BASES = ("partitioned", "orthonormal")
 
 
@@ -80,6 +84,15 @@ class Penalty:
     def __post_init__(self) -> None:
         for key in ("alpha", "mu", "omega"):
             object.__setattr__(self, key, _positive(key, getattr(self, key)))
+        a, m, w = self.alpha, self.mu, self.omega
+        # The penalty's mass, stiffness and damping per unit constraint: beyond the limit
+        # their products with M and Phi_q overflow (and physics left long before, 1e14).
+        for key, what, value in (("alpha", "alpha", a), ("omega", "alpha * omega^2", a * w * w),
+                                 ("mu", "2 alpha mu omega", 2.0 * a * m * w)):
+            if not value <= PENALTY_LIMIT:
+                raise ArgumentError(key, f"the penalty terms must stay within "
+                                         f"{PENALTY_LIMIT:g}: {what} = {value:.3g} with "
+                                         f"alpha = {a:g}, mu = {m:g}, omega = {w:g}")
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,13 @@ BAD_CALLS = {  # name: (target, keyword arguments, argument named, words in the 
                   "finite number > 0"),
     "alpha_canonical_too_large": (FOUR_BAR, {"formulation": "canonical", "alpha": 1e14},
                                   "alpha", "canonical state matrix"),
+    # Finite options whose products overflow (alpha Omega^2 = inf; 2 alpha mu Omega = inf).
+    "omega_overflows": (FOUR_BAR, {"formulation": "penalty", "omega": 1e155}, "omega",
+                        "alpha * omega^2 = inf"),
+    "mu_overflows": (FOUR_BAR, {"formulation": "penalty", "mu": 1e300}, "mu",
+                     "2 alpha mu omega = inf"),
+    "alpha_beyond_limit": (FOUR_BAR, {"formulation": "canonical", "alpha": 1e300}, "alpha",
+                           "must stay within 1e+100"),
 }
 
 
@@ -98,6 +105,8 @@ BAD_CLI = {  # name: (argv, words on the one stderr line)
                   "finite number > 0"),
     "canonical_alpha_too_large": (["linearize", "four_bar", "--formulation", "canonical",
                                    "--alpha", "1e14"], "canonical state matrix"),
+    "omega_overflows": (["linearize", "four_bar", "--formulation", "penalty", "--omega",
+                         "1e300"], "penalty terms must stay within"),
 }
 
 
