@@ -37,7 +37,27 @@ def as_path(path: Any, argument: str = "path") -> Path:
         raise ArgumentError(argument, "expected a file name, got an empty string")
     if "\0" in text:
         raise ArgumentError(argument, f"the path {text!r} contains a NUL character")
-    return Path(text)
+    path = Path(text)
+    _check_name_lengths(path)
+    return path
+
+
+#: The longest file name and path most file systems take (Linux NAME_MAX and PATH_MAX) [bytes].
+NAME_MAX, PATH_MAX = 255, 4096
+
+
+def _check_name_lengths(path: Path) -> None:
+    """ModelFileError for a name or path longer than the file system takes (the OS would say
+    ENAMETOOLONG from the first call that touches it, inside any check)."""
+    encoded = os.fsencode(path)
+    if len(encoded) >= PATH_MAX:
+        raise ModelFileError(f"{str(path)[:60]}...", f"path too long: {len(encoded)} bytes, "
+                                                     f"the limit is {PATH_MAX - 1}")
+    for part in path.parts:
+        size = len(os.fsencode(part))
+        if size > NAME_MAX:
+            raise ModelFileError(path, f"file name too long: '{part[:40]}...' has {size} bytes, "
+                                       f"the limit is {NAME_MAX}")
 
 
 def _folder_of(path: Path) -> Path:

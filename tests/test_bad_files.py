@@ -390,6 +390,28 @@ def test_wrong_typed_paths(call, path, words, pendulum):
     assert "argument 'path'" in str(info.value) and words in str(info.value)
 
 
+@pytest.mark.parametrize("argv", [
+    ["linearize", "pendulum", "--out", "{long}.npz"],
+    ["simulate", "pendulum", "--t-end", "0.01", "--out", "{long}.csv"],
+    ["report", "pendulum", "-o", "{long}.html"],
+    ["export-mjcf", "pendulum", "-o", "{long}.xml"],
+    ["trajectory", "pendulum", "{long}.npz", "--out", "m.npz"],
+])
+def test_file_names_too_long_for_the_file_system(argv, capfd, tmp_path, monkeypatch, pendulum):
+    """A name of 300 bytes: the OS refuses it (ENAMETOOLONG) inside the first check that
+    touches it; pinlin names it in one line, exit 2, before any work, and the API raises a
+    ModelFileError."""
+    monkeypatch.chdir(tmp_path)
+    long = "x" * 300
+    code, _, err = cli(capfd, *[a.format(long=long) for a in argv])
+    assert code == 2 and err.count("\n") == 1, err
+    assert "file name too long" in err and "has 30" in err
+    assert list(tmp_path.iterdir()) == []
+    for call in (lambda: pendulum.save(f"{long}.npz"), lambda: LinearModel.load(f"{long}.npz")):
+        with pytest.raises(ModelFileError, match="file name too long"):
+            call()
+
+
 # ------------------------------------------------------------------ 3. atomic writes
 @pytest.mark.parametrize("suffix", FORMATS)
 def test_file_size_limit_leaves_the_old_model_intact(suffix, tmp_path, pendulum):
