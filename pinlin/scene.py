@@ -350,6 +350,10 @@ def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     q = {j: joint_position(src, f"operating_point.q.{j}", v)
          for j, v in joint_table(src, "operating_point.q", tbl.get("q", {})).items()}
     independent = name_list(src, "operating_point.independent", tbl.get("independent", []))
+    if "independent" in tbl and not independent:
+        raise SceneError(src, "operating_point.independent",
+                         "expected the names of the independent joints, got an empty list; "
+                         "leave the key out to let pinlin choose them")
     solve = string(src, "operating_point.solve", tbl.get("solve", "inputs"), _SOLVE_MODES)
     u = joint_values(src, "operating_point.u", tbl.get("u", {}), unit=" [N*m or N]",
                      limit=COEFFICIENT_LIMIT)

@@ -149,6 +149,10 @@ CASES = {
                                                'independent = ["crank", "crank"]'),
                               FOUR_BAR_URDF, pinlin.SceneError,
                               ["operating_point.independent", "'crank' is listed twice"]),
+    # an explicit empty list is not "let pinlin choose" (that is leaving the key out)
+    "independent_empty": (FOUR_BAR.replace('independent = ["crank"]', "independent = []"),
+                          FOUR_BAR_URDF, pinlin.SceneError,
+                          ["operating_point.independent", "got an empty list"]),
     # names that would break a one-line message
     "key_with_line_break": (HEAD + '[operating_point]\nq = { "hin\\nge" = 0.0 }\n', GOOD,
                             pinlin.SceneError, ["operating_point.q", "control characters",
