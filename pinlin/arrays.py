@@ -27,3 +27,36 @@ def complement(n: int, index: np.ndarray) -> np.ndarray:
     keep = np.ones(n, dtype=bool)
     keep[index] = False
     return np.flatnonzero(keep)
+
+
+#: What each numpy dtype kind that is not a real number holds, in an error message.
+_NOT_NUMBERS = {"c": "complex entries", "b": "booleans (True/False)", "U": "text",
+                "S": "text", "M": "dates or times", "m": "dates or times", "V": "records"}
+
+
+def non_numbers(value: object) -> str | None:
+    """What makes ``value`` other than real numbers ("complex entries", "booleans
+    (True/False)", "text", "masked entries", ...), for the caller's message; None for real
+    numbers (integers, floats), and for what numpy cannot read as an array at all (the
+    caller's own conversion refuses that). ``np.array(v, dtype=float)`` would otherwise read
+    "1e3" as 1000, True as 1, a masked entry as the value under its mask, and drop imaginary
+    parts."""
+    if type(value) is np.ndarray and value.dtype.kind in "fiu":
+        return None  # the usual case, without a second conversion
+    if isinstance(value, np.ma.MaskedArray) and np.ma.getmaskarray(value).any():
+        return "masked entries"
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    kind = arr.dtype.kind
+    if kind != "O":
+        return _NOT_NUMBERS.get(kind)
+    for item in arr.flat:
+        if isinstance(item, str | bytes):
+            return "text"
+        if isinstance(item, bool | np.bool_):
+            return "booleans (True/False)"
+        if isinstance(item, complex | np.complexfloating):
+            return "complex entries"
+    return None

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .arrays import is_complex
+from .arrays import non_numbers
 from .conditioning import AccuracyWarning, refuse_condition, singular_to_working_precision
 from .equilibrium import ConstrainedPoint, input_vector, solve_constrained
 from .exceptions import ArgumentError, ModelError, ShapeError
@@ -99,9 +99,9 @@ def _configuration(system: System, q: object) -> np.ndarray:
     """q0 from the scene, or the validated override ``q`` (size nq, finite, normalized)."""
     if q is None:
         return configuration(system)
-    if is_complex(q):
-        raise ArgumentError("q", "expected real numbers (the configuration), got complex "
-                                 "entries")
+    bad = non_numbers(q)
+    if bad:
+        raise ArgumentError("q", f"expected real numbers (the configuration), got {bad}")
     try:
         q0 = np.array(q, dtype=float)
     except (TypeError, ValueError, OverflowError):
@@ -140,8 +140,9 @@ def _given_state(system: System, v: object, u: object) -> tuple[np.ndarray, np.n
 
 def _vector(name: str, value: object, size: int, what: str) -> np.ndarray:
     """A finite vector of ``size`` numbers, or an ArgumentError naming ``name``."""
-    if is_complex(value):
-        raise ArgumentError(name, f"expected real numbers ({what}), got complex entries")
+    bad = non_numbers(value)
+    if bad:
+        raise ArgumentError(name, f"expected real numbers ({what}), got {bad}")
     try:
         out = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):

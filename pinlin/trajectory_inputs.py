@@ -11,7 +11,7 @@ from concurrent.futures import Executor
 import numpy as np
 import pinocchio as pin
 
-from .arrays import is_complex
+from .arrays import non_numbers
 from .derivatives import BACKENDS, resolve_steps
 from .exceptions import ArgumentError, ShapeError
 from .system import System
@@ -25,8 +25,9 @@ def points(name: str, value: object, width: int, what: str, points: int | None,
     """``value`` as a C-ordered (N, width) float64 copy: finite, |x| <= limit, N rows (or
     ``points`` rows when given)."""
     expected = f"an (N, {width}) array ({what}, one row per point)"
-    if is_complex(value):
-        raise ArgumentError(name, f"expected real numbers ({what}), got complex entries")
+    bad = non_numbers(value)
+    if bad:
+        raise ArgumentError(name, f"expected real numbers ({what}), got {bad}")
     try:
         arr = np.array(value, dtype=float, order="C")
     except (TypeError, ValueError, OverflowError):
@@ -86,8 +87,9 @@ def check_normalized(system: System, q: np.ndarray) -> None:
 def times(t: object, points: int) -> np.ndarray | None:
     if t is None:
         return None
-    if is_complex(t):
-        raise ArgumentError("t", "expected real times [s], got complex entries")
+    bad = non_numbers(t)
+    if bad:
+        raise ArgumentError("t", f"expected real times [s], got {bad}")
     try:
         arr = np.array(t, dtype=float).reshape(-1) if np.ndim(t) <= 1 else None
     except (TypeError, ValueError, OverflowError):
