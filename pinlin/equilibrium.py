@@ -75,6 +75,9 @@ def input_vector(system, values) -> np.ndarray:
     for name, value in values.items():
         j = system.joint(name, f"operating_point.u.{name}")
         vals = np.atleast_1d(np.asarray(value, dtype=float))
+        if not any(j.idx_v + k in where for k in range(j.nv)):
+            raise SceneError(system.scene.source, f"operating_point.u.{name}",
+                             f"joint '{name}' is not actuated (see inputs.actuated)")
         if vals.size != j.nv:
             raise SceneError(system.scene.source, f"operating_point.u.{name}",
                              f"joint '{name}' has {j.nv} inputs, got {vals.size}")

@@ -434,3 +434,17 @@ def test_modal_refuses_non_finite_or_huge_matrices(value, pendulum_model):
     bad.__dict__["A"] = A
     with pytest.raises(pinlin.ModelError, match=r"matrix A .*A\[1, 0\]"):
         pinlin.modal(bad, method="general")
+
+
+@pytest.mark.parametrize("value", ["1.0", "[1.0, 0, 0, 0, 0, 0]", "[1.0, 2.0]"])
+def test_inputs_on_a_joint_without_any_say_so_whatever_their_count(value, tmp_path):
+    """standing_box has no inputs at all: u on its free base is 'not actuated', not a count of
+    6 inputs the scene does not have."""
+    text = (URDF_DIR / "standing_box.toml").read_text().replace(
+        'urdf = "standing_box.urdf"', f'urdf = "{URDF_DIR / "standing_box.urdf"}"')
+    text += f'solve = "none"\nu = {{ root_joint = {value} }}\n'
+    path = tmp_path / "box.toml"
+    path.write_text(text)
+    with pytest.raises(pinlin.SceneError, match=r"operating_point.u.root_joint.*is not "
+                                                 r"actuated"):
+        pinlin.linearize(Scene.load(path))
