@@ -66,9 +66,6 @@ REFUSE_CONDITION = 1e12
 #: Condition of Phi_d above which an AccuracyWarning names the worst point (the level at which
 #: a single model's notes say "near a singular position").
 WARN_CONDITION = 1e6
-#: Largest correction of a given configuration that holding a scene's contacts makes without
-#: a warning [m and rad]: far above the assembly's own tolerance, far below a foot that slid.
-CONTACT_CORRECTION = 1e-6
 #: Points per stacked block of :func:`fill` (bounds the temporaries: the delta's block of
 #: third-derivative terms is 64 x 6 x 12 x 3 numbers per array).
 BLOCK = 64
@@ -193,14 +190,6 @@ def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | N
         report(N)
     for k in range(N):
         moved[k] = np.linalg.norm(pin.difference(model, Q[k], out[k]))
-    far = int(np.argmax(moved))
-    if system.scene.contacts and moved[far] > CONTACT_CORRECTION:
-        warnings.warn(
-            f"scene '{system.scene.name}': trajectory point {far} was moved by "
-            f"{moved[far]:.3g} (m and rad) to hold the contacts where the scene's posture "
-            "puts them (a trajectory holds its contacts; a single pinlin.linearize at q "
-            "anchors them where q puts them instead); the models are at model.q, the "
-            "corrections in model.info['loops']['position_correction']", stacklevel=3)
     worst = int(np.argmax(condition))
     if condition[worst] > WARN_CONDITION:
         warnings.warn(AccuracyWarning(

@@ -400,16 +400,3 @@ def test_moving_penalty_model_of_point_contacts_matches_its_equation(name, seed,
         np.testing.assert_allclose(model.B, B, rtol=0, atol=1e-9 * np.abs(B).max())
     if name == "tilted_box":
         assert np.abs(model.A[:n, :n]).max() > 0.1
-
-
-def test_trajectory_that_moves_the_given_contacts_warns():
-    """A trajectory holds its contacts where the scene's posture puts them: a given point
-    whose contact frame is elsewhere is moved there, and that is said, not silent."""
-    box = pinlin.Scene.load(URDF_DIR / "standing_box.toml")
-    q0 = pinlin.linearize(box).operating_point.q
-    q = np.tile(q0, (2, 1))
-    q[1, :3] += [1.0, 2.0, 0.5]
-    with pytest.warns(UserWarning, match="trajectory point 1 was moved by 2.29"):
-        model = pinlin.linearize_trajectory(box, q, np.zeros((2, 6)), np.zeros((2, 0)))
-    assert np.allclose(model.q[1], q0)  # the contact's own anchor, not the given position
-    assert model.info["loops"]["position_correction"][1] == pytest.approx(np.sqrt(5.25))
