@@ -379,7 +379,7 @@ def _bad_cases():
         "no_points": ((ur5, q[:0], v[:0], u[:0]), {}, pinlin.ArgumentError,
                       "at least one point"),
         "not_numbers": ((ur5, q, v, [["a"] * 6] * 5), {}, pinlin.ArgumentError,
-                        "argument 'u': expected an"),
+                        "argument 'u': expected real numbers .inputs., got text"),
         "nan": ((ur5, q, nan_v, u), {}, pinlin.ArgumentError,
                 r"argument 'v': row 3 has NaN or inf \(column 2\)"),
         "too_big": ((ur5, q, v, big_u), {}, pinlin.ArgumentError,
