@@ -82,7 +82,7 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
     from .exceptions import ShapeError
     from .scene import Scene
     from .trajectory import linearize_trajectory
-    from .trajectory_files import MODEL_FORMATS, read_states
+    from .trajectory_files import MODEL_FORMATS, csv_location, read_states
 
     out = Path(args.out)
     check_out(out, MODEL_FORMATS, "trajectory model")
@@ -115,6 +115,12 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
     except ArgumentError as exc:
         bar.close()
         if exc.argument in ("q", "v", "u", "t"):
+            row = getattr(exc, "row", None)
+            if row is not None and Path(args.states).suffix == ".csv":  # the file's own terms
+                where = csv_location(args.states, scene.system, exc.argument, row,
+                                     exc.columns)
+                raise ModelFileError(args.states, f"{where}: point {row} {exc.detail}"
+                                                  f"{exc.tail}") from None
             raise ModelFileError(args.states, f"{exc.argument}: {exc.reason}") from None
         flag = {"second_order": "--second-order", "step": "--step", "workers": "--workers",
                 "allow_non_equilibrium": "--allow-non-equilibrium", "executor": "--dask",

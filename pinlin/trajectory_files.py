@@ -128,6 +128,26 @@ def _read_npz_states(path: Path, raw: bytes
     return doc["q"], doc.get("v"), doc.get("u"), doc.get("t")
 
 
+def _content_lines(text: str) -> list[tuple[int, str]]:
+    """(line number, line) of a CSV text's lines that are neither blank nor comments."""
+    return [(i, line) for i, line in enumerate(text.splitlines(), start=1)
+            if line.strip() and not line.lstrip().startswith("#")]
+
+
+def csv_location(path: str | Path, system: System, argument: str, row: int,
+                 columns: tuple[int, ...]) -> str:
+    """"line N, column 'name'" (or "columns 'a'-'b'") in a states CSV file for point ``row``
+    and the ``columns`` of array ``argument`` (q, v, u or t) as :func:`read_states` read them:
+    for messages about a value that the file held."""
+    text = Path(path).read_bytes().decode("utf-8-sig")
+    line = _content_lines(text)[1 + row][0]
+    q_cols, v_cols, u_cols = trajectory_columns(system)
+    names = {"q": q_cols, "v": v_cols, "u": u_cols, "t": ["t"]}[argument]
+    if len(columns) == 1:
+        return f"line {line}, column '{names[columns[0]]}'"
+    return f"line {line}, columns '{names[columns[0]]}'-'{names[columns[-1]]}'"
+
+
 def _read_csv_states(path: Path, raw: bytes, system: System
                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None,
                                 np.ndarray | None]:
@@ -135,8 +155,7 @@ def _read_csv_states(path: Path, raw: bytes, system: System
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise ModelFileError(path, f"not UTF-8 text: {exc}") from None
-    lines = [(i, line) for i, line in enumerate(text.splitlines(), start=1)
-             if line.strip() and not line.lstrip().startswith("#")]
+    lines = _content_lines(text)
     if not lines:
         raise ModelFileError(path, "empty: expected a header line naming the columns, then "
                                    "one line per point")

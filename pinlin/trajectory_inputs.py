@@ -45,13 +45,26 @@ def points(name: str, value: object, width: int, what: str, points: int | None,
     finite = np.isfinite(arr)
     if not finite.all():
         k, j = (int(i) for i in np.argwhere(~finite)[0])
-        raise ArgumentError(name, f"row {k} has NaN or inf (column {j})")
+        raise row_error(name, k, (j,), "has NaN or inf")
     big = np.abs(arr) > limit
     if big.any():
         k, j = (int(i) for i in np.argwhere(big)[0])
-        raise ArgumentError(name, f"row {k} has an entry of size {abs(arr[k, j]):.3g} "
-                                  f"(column {j}); {what} are limited to |x| <= {limit:g}")
+        raise row_error(name, k, (j,), f"has an entry of size {abs(arr[k, j]):.3g}",
+                        f"; {what} are limited to |x| <= {limit:g}")
     return arr
+
+
+def row_error(name: str, row: int, columns: tuple[int, ...], detail: str, tail: str = ""
+              ) -> ArgumentError:
+    """ArgumentError "row k <detail> (column j)<tail>" on argument ``name``, carrying
+    ``row``, ``columns`` (indices into the array) and ``detail`` and ``tail`` as attributes, so
+    that a caller that read the array from a file can name the file's line and columns
+    instead."""
+    where = (f"column {columns[0]}" if len(columns) == 1 else
+             f"columns {columns[0]}-{columns[-1]}")
+    exc = ArgumentError(name, f"row {row} {detail} ({where}){tail}")
+    exc.row, exc.columns, exc.detail, exc.tail = row, columns, detail, tail
+    return exc
 
 
 def check_normalized(system: System, q: np.ndarray) -> None:
@@ -74,10 +87,10 @@ def check_normalized(system: System, q: np.ndarray) -> None:
         if bad.any():
             k = int(np.argmax(bad))
             kind = "quaternion" if part.shape[1] == 4 else "(cos, sin) pair"
-            raise ArgumentError("q", f"row {k} is not normalized: the {kind} of joint "
-                                     f"'{j.name}' (columns {j.idx_q + start}-"
-                                     f"{j.idx_q + j.nq - 1}) has norm {norms[k]:.9g}; it must "
-                                     "have unit norm (pinlin never normalizes for you)")
+            raise row_error("q", k, tuple(range(j.idx_q + start, j.idx_q + j.nq)),
+                            f"is not normalized: the {kind} of joint '{j.name}'",
+                            f" has norm {norms[k]:.9g}; it must have unit norm (pinlin never "
+                            "normalizes for you)")
     if other:
         for k, row in enumerate(q):
             if not pin.isNormalized(model, row, NORM_TOLERANCE):
@@ -187,4 +200,4 @@ def check_options(system: System, derivatives: object,
 
 
 __all__ = ["NORM_TOLERANCE", "check_normalized", "check_options", "max_workers", "points",
-           "positive_int", "times"]
+           "positive_int", "row_error", "times"]

@@ -512,14 +512,20 @@ def test_cli_refuses_bad_csv_headers(edit, words, tmp_path, capfd):
     ("{header}\n{nan}\n", "line 3, column 'q:shoulder_pan_joint': 'nan' is not a finite "
                            "number"),
     ("{header}\n", "no data"),
+    # Values the file held, refused by the checks of linearize_trajectory: in the file's terms
+    ("{header}\n{zero}\n\n{huge}\n", "line 5, column 'v:shoulder_lift_joint': point 1 has "
+                                       "an entry of size 1e+300; velocities are limited"),
 ])
 def test_cli_refuses_bad_csv_rows(text, words, tmp_path, capfd):
     qc, vc, uc = pinlin.trajectory_columns(pinlin.Scene.from_robot("ur5").system)
     header = ",".join(qc + vc + uc)
     bad = ",".join(["x"] + ["0"] * 17)
     nan = ",".join(["nan"] + ["0"] * 17)
+    zero = ",".join(["0"] * 18)
+    huge = ",".join(["0"] * 7 + ["1e300"] + ["0"] * 10)
     path = tmp_path / "traj.csv"
-    path.write_text("# comment\n" + text.format(header=header, bad=bad, nan=nan))
+    path.write_text("# comment\n" + text.format(header=header, bad=bad, nan=nan, zero=zero,
+                                                 huge=huge))
     assert main(["trajectory", "ur5", str(path), "--out", str(tmp_path / "m.npz")]) == 2
     err = capfd.readouterr().err
     assert words in err and err.count("\n") == 1
@@ -565,3 +571,18 @@ def test_no_shared_segment_is_left_behind():
     scene = pinlin.Scene.from_robot("ur5")
     pinlin.linearize_trajectory(scene, *states(scene, 40, seed=26), workers=2)
     assert set(Path(parallel.SHM_FOLDER).glob("pinlin-trajectory-*")) == before
+
+
+def test_cli_names_the_csv_columns_of_an_unnormalized_quaternion(tmp_path, capfd):
+    scene = pinlin.Scene.from_robot("solo12")
+    qc, vc, uc = pinlin.trajectory_columns(scene.system)
+    q = np.r_[0, 0, 0.3, 0, 0, 0, 1, np.zeros(12)]
+    rows = [np.r_[q, np.zeros(len(vc) + len(uc))] for _ in range(2)]
+    rows[1][3:7] *= 2.0
+    path = tmp_path / "traj.csv"
+    path.write_text(",".join(qc + vc + uc) + "\n"
+                    + "\n".join(",".join(map(repr, map(float, r))) for r in rows) + "\n")
+    assert main(["trajectory", "solo12", str(path), "--out", str(tmp_path / "m.npz")]) == 2
+    err = capfd.readouterr().err
+    assert ("line 3, columns 'q:root_joint[3]'-'q:root_joint[6]': point 1 is not normalized: "
+            "the quaternion of joint 'root_joint' has norm 2") in err, err
