@@ -192,6 +192,8 @@ def _read_csv_states(path: Path, raw: bytes, system: System
                                        f"names {len(header)} columns")
         for col, cell in enumerate(fields):
             try:
+                if "_" in cell:  # float() reads "1_0" as 10: not a number a CSV writes
+                    raise ValueError(cell)
                 values[row, col] = float(cell)
             except ValueError:
                 raise ModelFileError(path, f"line {number}, column '{header[col]}': "
