@@ -155,6 +155,21 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "        return cons.jacobian(q)[rows] @ op.a + cons.bias_acceleration(q, op.v)[rows]",
         "        return cons.bias_acceleration(q, op.v)[rows]",
         "a mechanism's numerical model at a moving state drops Phi_qq[a0] from c_q"),
+    "mass_check_skipped": (
+        "pinlin/formulations/independent.py", "    elif check_mass is not None:",
+        "    elif False:",
+        "an open chain's M^-1 is never checked when its check waits for the RNEA derivatives"),
+    "given_state_never_equilibrium": (
+        "pinlin/formulations/motion.py",
+        "    equilibrium = not np.any(v) and float(np.abs(residual).max(initial=0.0)) <= tol",
+        "    equilibrium = False",
+        "a constrained system given at rest with its holding inputs is never an equilibrium"),
+    "trajectory_discretize_overflow_kept": (
+        "pinlin/trajectory.py", "        refuse_overflow(self.name, dt, method, A_d, B_d, f_d)\n",
+        "", "a trajectory discretized over too long a dt keeps its NaN matrices"),
+    "penalty_limit_dropped": (
+        "pinlin/options.py", "            if not value <= PENALTY_LIMIT:",
+        "            if False:", "penalty options whose products overflow are accepted"),
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),
