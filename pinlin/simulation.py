@@ -27,11 +27,11 @@ import numpy as np
 import pinocchio as pin
 import scipy.integrate
 
-from .arrays import read_only
+from .arrays import non_numbers, read_only
 from .exceptions import ArgumentError, ModelError
 from .linearization import _system, operating_point
 from .operating_point import OperatingPoint
-from .scene import Scene
+from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain
 from .system import System
 
@@ -319,6 +319,9 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     dyn: OpenChain | Mechanism = Mechanism(system, op) if system.constraints else \
         OpenChain(system, op)
     nv = system.nv
+    bad = None if dx0 is None else non_numbers(dx0)
+    if bad:
+        raise ArgumentError("dx0", f"expected {2 * nv} real numbers, got {bad}")
     try:
         deviation = np.zeros(2 * nv) if dx0 is None else np.array(dx0, dtype=float).reshape(-1)
     except (TypeError, ValueError):
@@ -326,6 +329,12 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             from None
     if not np.all(np.isfinite(deviation)):
         raise ArgumentError("dx0", "contains NaN or inf")
+    if deviation.size == 2 * nv:  # (a wrong size is the initial state's to refuse)
+        for part, limit, what in ((deviation[:nv], POSITION_LIMIT, "positions [m or rad]"),
+                                  (deviation[nv:], COEFFICIENT_LIMIT, "velocities")):
+            if part.size and np.abs(part).max() > limit:
+                raise ArgumentError("dx0", f"has an entry of size {np.abs(part).max():.3g}; "
+                                           f"its {what} are limited to |x| <= {limit:g}")
     s0, notes = dyn.initial_state(deviation)
     inputs = _Inputs(u, grid, op.u)
     stiffness, why = float("nan"), "given"

@@ -308,6 +308,12 @@ def test_outputs_and_names():
     ({"t": [0.0, 1.0], "u": np.zeros((3, 1))}, pinlin.ArgumentError, r"\(2, 1\)"),
     ({"t": [0.0, 1.0], "method": "Euler"}, pinlin.ArgumentError, "DOP853"),
     ({"t": [0.0, 1.0], "rtol": 0.0}, pinlin.ArgumentError, "> 0"),
+    # read as numbers by np.array, or beyond what a float resolves: refused, not simulated
+    ({"t": [0.0, 1.0], "dx0": ["0.1", "0"]}, pinlin.ArgumentError, "got text"),
+    ({"t": [0.0, 1.0], "dx0": [True, False]}, pinlin.ArgumentError, "got booleans"),
+    ({"t": [0.0, 1.0], "dx0": [1e300, 0.0]}, pinlin.ArgumentError,
+     r"positions \[m or rad\] are limited"),
+    ({"t": [0.0, 1.0], "dx0": [0.0, 1e13]}, pinlin.ArgumentError, "velocities are limited"),
 ])
 def test_bad_arguments(kwargs, error, match):
     with pytest.raises(error, match=match):
