@@ -132,6 +132,13 @@ class _Inputs:
         return self.u0 + du
 
 
+#: Periods of the fastest oscillation (max |Im lambda| T / 2 pi of the Jacobian at the
+#: start) beyond which a horizon is refused: any integrator, implicit too, takes ~10 steps a
+#: period to follow it, so 1e5 periods are ~1e6 steps of a Python right-hand side (minutes);
+#: beyond, a typo in t (1e9 s for 1e-9) would run for days.
+MAX_CYCLES = 1e5
+
+
 def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
                    ) -> tuple[str, float, str]:
     """(method, rho * T, why) by the stiffness criterion of the module docstring."""
@@ -146,6 +153,13 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
         J[:, k] = (dyn.rhs(t0, s0 + e, u) - dyn.rhs(t0, s0 - e, u)) / (2 * h)
     dyn.state(s0)  # back to the initial configuration (mechanisms warm-start from it)
     lam = np.linalg.eigvals(J) if n else np.zeros(0)
+    omega = float(np.abs(lam.imag).max(initial=0.0))
+    cycles = omega * T / (2.0 * np.pi)
+    if not cycles <= MAX_CYCLES:
+        raise ArgumentError("t", f"the horizon {T:.3g} s spans {cycles:.3g} periods of the "
+                                 f"fastest oscillation ({omega:.3g} rad/s at the start): more "
+                                 f"than {MAX_CYCLES:g}, which an integrator must resolve step "
+                                 "by step (~10 steps a period); simulate a shorter horizon")
     rho = max(0.0, float(-lam.real.min(initial=0.0)))
     stiff = rho * T
     method = "Radau" if stiff > STIFF_LIMIT else "DOP853"
@@ -337,9 +351,11 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
                                            f"its {what} are limited to |x| <= {limit:g}")
     s0, notes = dyn.initial_state(deviation)
     inputs = _Inputs(u, grid, op.u)
-    stiffness, why = float("nan"), "given"
+    chosen, stiffness, why = _choose_method(dyn, s0, inputs, grid)  # refuses endless ones
     if method is None:
-        method, stiffness, why = _choose_method(dyn, s0, inputs, grid)
+        method = chosen
+    else:
+        stiffness, why = float("nan"), "given"
     Q, V, stats = _integrate(dyn, inputs, grid, s0, method, rtol, atol)
 
     X = np.hstack([np.array([pin.difference(system.model, op.q, q) for q in Q]), V - op.v])

@@ -314,6 +314,11 @@ def test_outputs_and_names():
     ({"t": [0.0, 1.0], "dx0": [1e300, 0.0]}, pinlin.ArgumentError,
      r"positions \[m or rad\] are limited"),
     ({"t": [0.0, 1.0], "dx0": [0.0, 1e13]}, pinlin.ArgumentError, "velocities are limited"),
+    # 1e9 s of a 3.1 rad/s pendulum: 5e8 periods (an integrator would run for days)
+    ({"t": [0.0, 1e9], "dx0": [0.1, 0.0]}, pinlin.ArgumentError,
+     r"spans 4.9\d+e\+08 periods of the fastest oscillation \(3.1\d rad/s"),
+    ({"t": [0.0, 1e9], "dx0": [0.1, 0.0], "method": "Radau"}, pinlin.ArgumentError,
+     "simulate a shorter horizon"),
 ])
 def test_bad_arguments(kwargs, error, match):
     with pytest.raises(error, match=match):
