@@ -84,7 +84,7 @@ from .linear_model import LinearModel
 from .linearization import _system, linearize
 from .modal import ModalAnalysis, modal
 from .response import response
-from .simulation import simulate
+from .simulation import MAX_CYCLES, simulate
 from .system import System
 from .validity_report import Bound, Case, Validity, notes
 
@@ -414,6 +414,9 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
     system = _scene_system(scene)
     amps, default = _amplitudes(amplitudes)
     periods = _positive("periods", periods, "of periods")
+    if periods > MAX_CYCLES:  # what simulate refuses, said in this function's terms
+        raise ArgumentError("periods", f"expected at most {MAX_CYCLES:g} periods (each takes "
+                                       f"the integrator ~10 steps), got {periods:g}")
     tolerance = _positive("tolerance", tolerance, "(relative error)", upper=1.0)
     time_constants = _positive("time_constants", time_constants, "of time constants")
     horizon = None if horizon is None else _positive("horizon", horizon, "[s]")
