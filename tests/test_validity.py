@@ -245,7 +245,7 @@ def test_result_is_read_only(pendulum):
     ({"tolerance": -0.01}, pinlin.ArgumentError,
      r"tolerance.*expected a finite number > 0 and < 1 \(relative error\), got -0.01"),
     ({"tolerance": 0.0}, pinlin.ArgumentError, r"tolerance.*> 0 and < 1"),
-    ({"periods": 1e9}, pinlin.ArgumentError, r"argument 'periods': expected at most 1e\+05"),
+    ({"periods": 1e9}, pinlin.ArgumentError, "argument 'periods': expected at most 100000 periods"),
     ({"tolerance": 1.5}, pinlin.ArgumentError, r"tolerance.*> 0 and < 1"),
     ({"tolerance": True}, pinlin.ArgumentError, r"tolerance.*expected a number.*got bool"),
     ({"amplitudes": []}, pinlin.ArgumentError,
