@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import non_numbers
 from .exceptions import ArgumentError, ModelError, PinlinError, ShapeError
 from .files import as_path, check_file_target, write_bytes_atomic
 from .model_files import MATRICES, NAME_FIELDS, jsonable, model_format, read_model, serialize
@@ -39,10 +41,15 @@ _vdot = np.vdot
 _jsonable = jsonable  # its name here before pinlin.model_files
 
 
+_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+
+
 @functools.lru_cache(maxsize=512)
 def _valid_names(names: tuple) -> bool:
-    """Whether a tuple holds distinct strings (cached: models of one system share their names)."""
-    return all(type(s) is str for s in names) and len(set(names)) == len(names)
+    """Whether a tuple holds distinct strings without control characters (cached: models of
+    one system share their names)."""
+    return (all(type(s) is str for s in names) and len(set(names)) == len(names)
+            and not _CONTROL.search("".join(names)))
 
 
 #: Name tuples already found distinct, by id (the tuple itself is kept, so its id cannot be
@@ -79,6 +86,11 @@ def _names(key: str, value: Any, model: str) -> tuple[str, ...]:
     if odd is not None:
         raise ArgumentError(key, f"expected names as strings, got {type(odd).__name__}")
     names = tuple(str(s) for s in value)
+    odd = next((s for s in names if _CONTROL.search(s)), None)
+    if odd is not None:
+        raise ArgumentError(key, f"name {odd!r} has control characters (a line break, a tab): "
+                                 "they would break the one-line messages and the CSV and "
+                                 "MATLAB files that carry names")
     if not _valid_names(names):
         raise ModelError(_duplicates_message(key, names, model))
     return names
@@ -100,8 +112,9 @@ def _matrix(name: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
         return value  # already immutable: sharing it is safe
     if value is None:
         raise ArgumentError(name, "expected a matrix, got None")
-    if np.iscomplexobj(value):
-        raise ArgumentError(name, "expected a real matrix, got complex entries")
+    bad = non_numbers(value)
+    if bad:
+        raise ArgumentError(name, f"expected a matrix of real numbers, got {bad}")
     try:
         arr = np.array(value, dtype=float)  # a copy: the model owns its arrays
     except (TypeError, ValueError, OverflowError) as exc:

@@ -265,8 +265,22 @@ class ModalAnalysis:
 
     def dominant(self, index: int, threshold: float = 0.5, limit: int = 3) -> list[str]:
         """Names of the coordinates whose |shape| entry is at least ``threshold`` in mode
-        ``index``, largest first."""
-        return modal_table.dominant(self, index, threshold, limit)
+        ``index``, largest first.
+
+        Raises:
+            ArgumentError: ``index`` is not an eigenvalue index 0 <= index < n.
+        """
+        return modal_table.dominant(self, self._index(index), threshold, limit)
+
+    def _index(self, index: object) -> int:
+        """``index`` as an eigenvalue index, or an ArgumentError (no negative wrap-around)."""
+        n = len(self.eigenvalues)
+        if isinstance(index, bool) or not isinstance(index, int | np.integer) \
+                or not 0 <= index < n:
+            raise ArgumentError("index", f"expected an eigenvalue index from 0 to {n - 1}, got "
+                                         f"{index!r:.40}" if n else
+                                f"model '{self.model.name}' has no eigenvalue, got {index!r:.40}")
+        return int(index)
 
     def modes(self) -> list[int]:
         """Indices of one eigenvalue per mode: conjugate pairs and rigid pairs counted once."""
@@ -280,7 +294,13 @@ class ModalAnalysis:
         return modal_table.constraint(self)
 
     def kind(self, index: int) -> str:
-        return modal_table.kind(self, index)
+        """What eigenvalue ``index`` is: "rigid", "constraint", "oscillatory", "undamped",
+        "real", "unstable" or "unstable osc.".
+
+        Raises:
+            ArgumentError: ``index`` is not an eigenvalue index 0 <= index < n.
+        """
+        return modal_table.kind(self, self._index(index))
 
     def table(self) -> str:
         """A readable table with one row per mode."""

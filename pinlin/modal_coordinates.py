@@ -42,7 +42,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.linalg import lapack
 
-from .exceptions import ShapeError
+from .exceptions import ArgumentError, ShapeError
 
 if TYPE_CHECKING:
     from .modal import ModalAnalysis
@@ -149,10 +149,16 @@ class ModalCoordinates:
 
 
 def _states(x: np.ndarray, n: int, name: str) -> np.ndarray:
+    """``x`` as an array of states (n,) or (N, n): numbers (complex ones too: modal
+    coordinates are complex), finite."""
     arr = np.asarray(x)
+    if arr.dtype.kind not in "fiuc":
+        raise ArgumentError(name, f"expected numbers, got an array of {arr.dtype}")
     if arr.ndim not in (1, 2) or arr.shape[-1] != n:
         raise ShapeError(f"{name} must have shape ({n},) or (N, {n}) (one state per row), got "
                          f"{arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ArgumentError(name, "has NaN or inf entries")
     return arr
 
 

@@ -186,7 +186,7 @@ def test_repeated_scene_outputs_never_reach_a_file(write_scene, capfd, tmp_path)
     ({"input_names": None}, ArgumentError, "argument 'input_names': expected a sequence"),
     ({"output_names": [7]}, ArgumentError, "expected names as strings, got int"),
     ({"output_names": (["y"],)}, ArgumentError, "expected names as strings, got list"),
-    ({"A": [[1j]]}, ArgumentError, "argument 'A': expected a real matrix"),
+    ({"A": [[1j]]}, ArgumentError, "argument 'A': expected a matrix of real numbers, got complex"),
     ({"B": [["one"]]}, ArgumentError, "argument 'B': expected a matrix of real numbers"),
     ({"C": None}, ArgumentError, "argument 'C': expected a matrix, got None"),
     ({"info": [1, 2]}, ArgumentError, "argument 'info': expected a mapping"),

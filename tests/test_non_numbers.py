@@ -70,3 +70,36 @@ def test_trajectory(ur5, argument, value, words):
     with pytest.raises(pinlin.ArgumentError, match=f"argument '{argument}': expected real "
                                                    f".* got {words}"):
         pinlin.linearize_trajectory(scene, arrays["q"], arrays["v"], arrays["u"], arrays["t"])
+
+
+def _model(**changes):
+    fields = dict(A=np.array([[0.0, 1.0], [-1.0, -0.1]]), B=np.array([[0.0], [1.0]]),
+                  C=np.eye(2), D=np.zeros((2, 1)), state_names=("q:a", "v:a"),
+                  input_names=("u:a",), output_names=("y1", "y2"))
+    fields.update(changes)
+    return pinlin.LinearModel(**fields)
+
+
+def test_linear_model_matrices_and_names():
+    with pytest.raises(pinlin.ArgumentError, match="argument 'A': .* got booleans"):
+        _model(A=np.eye(2, dtype=bool))
+    with pytest.raises(pinlin.ArgumentError, match="argument 'state_names': name 'q:\\\\n' has "
+                                                   "control characters"):
+        _model(state_names=("q:\n", "v:a"))
+
+
+def test_modal_indices_and_coordinates():
+    modes = pinlin.modal(_model())
+    assert modes.kind(1) == modes.kind(np.int64(1))
+    for bad in (2, -1, 1.0, True):
+        for method in (modes.kind, modes.dominant):
+            with pytest.raises(pinlin.ArgumentError, match="argument 'index': expected an "
+                                                           "eigenvalue index from 0 to 1"):
+                method(bad)
+    for method in (modes.to_modal, modes.from_modal):
+        with pytest.raises(pinlin.ArgumentError, match="has NaN or inf"):
+            method(np.array([np.nan, 0.0]))
+        with pytest.raises(pinlin.ArgumentError, match="expected numbers"):
+            method(np.array(["1", "0"]))
+    r = modes.to_modal(np.array([1.0, 0.0]))
+    assert np.allclose(modes.from_modal(r), [1.0, 0.0], atol=1e-14)
