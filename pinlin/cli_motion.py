@@ -166,9 +166,11 @@ def _times(args: argparse.Namespace) -> np.ndarray:
     if not (np.isfinite(args.dt) and 0 < args.dt <= args.t_end):
         raise ArgumentError("--dt", f"expected an output step in (0, --t-end] [s], got "
                                     f"{args.dt:g}")
-    n = int(np.floor(args.t_end / args.dt + 1e-9)) + 1
-    if n > 1_000_000:
-        raise ArgumentError("--dt", f"{n} output times; at most 1000000 (raise --dt)")
+    count = np.floor(args.t_end / args.dt + 1e-9) + 1.0
+    if not count <= 1_000_000:  # a float: --t-end 1e300 / --dt 0.01 overflows no int
+        raise ArgumentError("--dt", f"--t-end / --dt gives {count:.3g} output times; at most "
+                                    "1000000 (raise --dt or shorten --t-end)")
+    n = int(count)
     return np.arange(n) * args.dt
 
 

@@ -68,6 +68,10 @@ def test_validity_prints_the_radius_and_writes_plots(capfd, tmp_path):
 BAD = {
     "t_end_negative": (["simulate", "pendulum", "--t-end", "-1"], "--t-end"),
     "dt_zero": (["response", "pendulum", "--t-end", "1", "--dt", "0"], "--dt"),
+    "too_many_times": (["response", "pendulum", "--t-end", "1e300"],
+                       "--t-end / --dt gives 1e+302 output times; at most 1000000"),
+    "simulate_forever": (["simulate", "pendulum", "--t-end", "1e7", "--dt", "100", "--x0",
+                          "q:hinge=0.1"], "periods of the fastest oscillation"),
     "x0_unknown": (["simulate", "pendulum", "--t-end", "1", "--x0", "q:nope=1"],
                    "'q:nope' is not one of"),
     "x0_not_assignment": (["simulate", "pendulum", "--t-end", "1", "--x0", "hinge"],
