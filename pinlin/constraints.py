@@ -290,14 +290,14 @@ class ConstraintSet:
             phi = self._closure_residual(kd)
             cols = sysm.kin_columns
             for kind, f1, f2, row, anchor in self._closures:
-                J1 = pin.getFrameJacobian(kin, kd, f1, LWA)[:, cols]
+                J1 = pin.getFrameJacobian(kin, kd, f1, LWA).reshape(6, -1)[:, cols]
                 if f2 is None:
                     out[row:row + 3] = J1[:3]
                     if kind == "weld":
                         E = kd.oMf[f1].rotation @ anchor.rotation.T
                         out[row + 3:row + 6] = pin.Jlog3(E) @ E.T @ J1[3:]
                     continue
-                J2 = pin.getFrameJacobian(kin, kd, f2, LWA)[:, cols]
+                J2 = pin.getFrameJacobian(kin, kd, f2, LWA).reshape(6, -1)[:, cols]
                 out[row:row + 3] = J1[:3] - J2[:3]
                 if kind == "weld":
                     E = kd.oMf[f1].rotation @ kd.oMf[f2].rotation.T
@@ -327,7 +327,8 @@ class ConstraintSet:
         frames, P, anchor = plan
         pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
         position = np.array([pin.updateFramePlacement(kin, kd, f).translation for f in frames])
-        J = np.concatenate([pin.getFrameJacobian(kin, kd, f, LWA)[:3] for f in frames])
+        J = np.concatenate([pin.getFrameJacobian(kin, kd, f, LWA).reshape(6, -1)[:3]
+                            for f in frames])
         if sysm.rotation is not None:
             J = J[:, sysm.kin_columns]
         phi = P @ position.reshape(-1)

@@ -116,7 +116,7 @@ def frame_jacobians(model: pin.Model, data: pin.Data, q: np.ndarray, frames: tup
     frame, into ``out`` (F, 6, nv)."""
     pin.computeJointJacobians(model, data, q)
     for i, fid in enumerate(frames):
-        out[i] = pin.getFrameJacobian(model, data, fid, LWA)
+        out[i] = pin.getFrameJacobian(model, data, fid, LWA).reshape(6, -1)
 
 
 def _columns(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -172,7 +172,7 @@ def _bodies(model: LinearModel, scene: Scene, phi: np.ndarray
     pin.computeJointJacobians(pm, data, np.asarray(op.q, dtype=float))
     energies, names = [], []
     for jid in range(1, pm.njoints):
-        J = pin.getJointJacobian(pm, data, jid, pin.ReferenceFrame.LOCAL)
+        J = pin.getJointJacobian(pm, data, jid, pin.ReferenceFrame.LOCAL).reshape(6, -1)
         V = J @ v
         energies.append((V.conj() * (pm.inertias[jid].matrix() @ V)).real.sum(axis=0))
         names.append(_link_name(pm, jid))

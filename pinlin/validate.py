@@ -312,12 +312,13 @@ def validate(scene, name: str | None = None, *, picture: bool | None = None) -> 
         res.status, res.reason = status, " ".join(str(exc).split())
         return res
     if not len(ref):   # nothing moves (e.g. a welded body): every MuJoCo mode is a soft one
-        expected = 2 * system.constraints.size
+        # The constraints hold all nv velocities (redundant rows add none): 2 nv soft modes.
+        expected = 2 * system.nv
         if len(res.set_aside) != expected:
             res.status, res.reason = "FAIL", (f"pinlin's model has no states; MuJoCo's has "
-                                              f"{len(res.set_aside)} eigenvalues where its "
-                                              f"{system.constraints.size} constraint rows give "
-                                              f"{expected}")
+                                              f"{len(res.set_aside)} eigenvalues where the "
+                                              f"{system.nv} velocities its constraints hold "
+                                              f"give {expected}")
         return res
     # Zero eigenvalues (Jordan blocks) move like sqrt of a perturbation of A, with constants
     # set by the whole model: measure it on pinlin's own A perturbed at the size of the
