@@ -12,7 +12,9 @@ computed from the modal form x = T r (:mod:`pinlin.modal_coordinates`)::
 
 with a Jordan or Schur block of the modal form solved as one small system (jw I - Lam_b)^-1.
 A discrete model (dt > 0) gives H(e^{jw dt}) = C (z I - A)^-1 B + D at z = e^{jw dt}, from the
-eigenvectors of its A. At an undamped mode's frequency (jw = lam_i exactly) H is infinite.
+eigenvectors of its A. Where jw hits an eigenvalue exactly (an undamped mode's frequency, a
+rigid pair at w = 0) H is infinite (inf) in the entries that see that pole and finite in the
+others (an uncontrollable or unobservable mode adds nothing).
 """
 
 from __future__ import annotations
@@ -112,6 +114,37 @@ def _frequencies(w: object) -> np.ndarray:
     return arr
 
 
+def _block_gain(M: np.ndarray, c: np.ndarray, b: np.ndarray, s: complex
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """c (s I - M)^-1 b of one block of the modal form, and where it is infinite (s an
+    eigenvalue of M whose pole the entry sees; the finite part is returned there as 0).
+
+    With N = M - s I nilpotent (a rigid Jordan pair at s = 0), (s' I - M)^-1 = sum_j N^j /
+    (s' - s)^(j+1): an entry is infinite iff some c N^j b is non-zero, else it is 0. Otherwise
+    the block's eigenvalues are split: those at s (to rounding of M) give the poles, the
+    others the finite remainder."""
+    k = M.shape[0]
+    N = M - s * np.eye(k)
+    if not np.any(np.linalg.matrix_power(N, k)):
+        at = np.zeros((c.shape[0], b.shape[1]), dtype=bool)
+        power = np.eye(k)
+        for _ in range(k):
+            at |= (c @ power @ b) != 0
+            power = power @ N
+        return np.zeros(at.shape, dtype=complex), at
+    if not np.linalg.matrix_rank(N) < k:
+        return c @ np.linalg.solve(-N, b), np.zeros((c.shape[0], b.shape[1]), dtype=bool)
+    lam, V = np.linalg.eig(M)
+    cv, vb = c @ V, np.linalg.solve(V, b)
+    near = np.abs(lam - s) <= 8 * np.finfo(float).eps * max(1.0, float(np.abs(M).max()))
+    gain = sum((np.outer(cv[:, i], vb[i]) / (s - lam[i]) for i in np.flatnonzero(~near)),
+               np.zeros((c.shape[0], b.shape[1]), dtype=complex))
+    at = np.zeros(gain.shape, dtype=bool)
+    for i in np.flatnonzero(near):
+        at |= np.outer(cv[:, i], vb[i]) != 0
+    return gain, at
+
+
 def frequency_response(model: LinearModel, w: np.ndarray | Sequence[float],
                        inputs: Sequence[str] | str | None = None,
                        outputs: Sequence[str] | str | None = None) -> FrequencyResponse:
@@ -153,20 +186,32 @@ def frequency_response(model: LinearModel, w: np.ndarray | Sequence[float],
         s = 1j * w
     Br, Cr = dec.input_matrix[:, cols], dec.output_matrix[rows]
     H = np.zeros((len(w), len(rows), len(cols)), dtype=complex)
+    pole = np.zeros(H.shape, dtype=bool)     # entries whose pole s hits exactly: infinite
     scalars = [s_ for s_, e in dec.blocks if e - s_ == 1]
     if scalars:
         lam = np.diag(dec.matrix)[scalars]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            resolvent = 1.0 / (s[:, None] - lam[None, :])
+        gap = s[:, None] - lam[None, :]
+        hit = gap == 0
+        resolvent = np.where(hit, 0.0, 1.0 / np.where(hit, 1.0, gap))
         H += np.einsum("pi,ki,im->kpm", Cr[:, scalars], resolvent, Br[scalars])
+        for k, i in zip(*np.nonzero(hit), strict=True):
+            pole[k] |= np.outer(Cr[:, scalars[i]], Br[scalars[i]]) != 0
     for s_, e in ((s_, e) for s_, e in dec.blocks if e - s_ > 1):
         k = e - s_
-        mats = s[:, None, None] * np.eye(k) - dec.matrix[s_:e, s_:e]
-        X = np.linalg.solve(mats, np.broadcast_to(Br[s_:e], (len(w), k, len(cols))))
-        H += np.einsum("pi,kim->kpm", Cr[:, s_:e], X)
+        M, c, b = dec.matrix[s_:e, s_:e], Cr[:, s_:e], Br[s_:e]
+        mats = s[:, None, None] * np.eye(k) - M
+        try:
+            H += np.einsum("pi,kim->kpm", c, np.linalg.solve(
+                mats, np.broadcast_to(b, (len(w), k, len(cols)))))
+        except np.linalg.LinAlgError:   # s hits an eigenvalue of the block exactly
+            for j in range(len(w)):
+                gain, at = _block_gain(M, c, b, s[j])
+                H[j] += gain
+                pole[j] |= at
     H += std.D[np.ix_(rows, cols)]
     if std.F is not None and np.any(std.F) and not model.dt:
         H += s[:, None, None] * std.F[np.ix_(rows, cols)]
+    H[pole] = np.inf
     for arr in (w, H):
         arr.flags.writeable = False
     return FrequencyResponse(w, H, tuple(model.input_names[j] for j in cols),
