@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import io
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -188,6 +189,9 @@ def _assignments(values: list[str] | None, names: tuple[str, ...], option: str,
         if name not in names:
             shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
             raise ArgumentError(option, f"{name!r} is not one of {shown}")
+        if name in out:
+            raise ArgumentError(option, f"{name!r} is given twice ({out[name]} and "
+                                        f"{value.strip()}); give each name once")
         out[name] = value.strip()
     return out
 
@@ -289,7 +293,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     scene = Scene.resolve(args.target)
     model = linearize(scene)
     x0 = _initial(model, args.x0)
-    sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
+    with _options_named({"dx0": "--x0", "rtol": "--rtol", "atol": "--atol",
+                         "method": "--method"}):
+        sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
     n = len(sim.state_names) // 2
     print(f"simulated '{scene.name}' (nonlinear, the scene's effects: "
           f"{', '.join(scene.effects.in_play()) or 'none'}) over {t[-1]:g} s: "
@@ -313,6 +319,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                          for k, name in enumerate(sim.state_names[:n])])
         print(f"plot written to {plot}")
     return 0
+
+
+@contextmanager
+def _options_named(options: dict[str, str]):
+    """Re-raise a library ArgumentError naming its command-line option (``dx0`` is --x0)."""
+    try:
+        yield
+    except ArgumentError as exc:
+        if exc.argument not in options:
+            raise
+        raise ArgumentError(options[exc.argument], exc.reason) from None
 
 
 def _signals(args: argparse.Namespace, model):
@@ -344,23 +361,28 @@ def _cmd_response(args: argparse.Namespace) -> int:
     from .scene import Scene
 
     t = _times(args)
+    if args.nonlinear and (args.step or args.impulse or args.harmonic):
+        raise ArgumentError("--nonlinear", "compares free responses (--x0 only); inputs "
+                                           "are not simulated nonlinearly from the CLI")
     out, plot = _check_history_out(args.out), _check_plot(args.plot)
     scene = Scene.resolve(args.target)
     model = linearize(scene)
     x0 = _initial(model, args.x0)
     u = _signals(args, model)
-    res = response(model, t, x0=x0, u=u, method=args.method)
+    with _options_named({"x0": "--x0", "method": "--method"}):
+        res = response(model, t, x0=x0, u=u, method=args.method)
     n = len(model.state_names) // 2
-    peak = np.abs(res.x[:, :n]).max(axis=0)
-    worst = int(np.argmax(peak))
-    print(f"linear response of '{model.name}' ({args.method}) over {t[-1]:g} s: largest "
-          f"excursion {peak[worst]:.6g} on {model.state_names[worst]}")
+    if n == 0:
+        print(f"linear response of '{model.name}': the model has no states (its constraints "
+              f"hold every coordinate), nothing moves")
+    else:
+        peak = np.abs(res.x[:, :n]).max(axis=0)
+        worst = int(np.argmax(peak))
+        print(f"linear response of '{model.name}' ({args.method}) over {t[-1]:g} s: largest "
+              f"excursion {peak[worst]:.6g} on {model.state_names[worst]}")
     curves = [(name, res.t, res.x[:, k], "-") for k, name in enumerate(model.state_names[:n])]
     columns = {name: res.x[:, k] for k, name in enumerate(model.state_names)}
     if args.nonlinear:
-        if u is not None:
-            raise ArgumentError("--nonlinear", "compares free responses (--x0 only); inputs "
-                                               "are not simulated nonlinearly from the CLI")
         from .simulation import simulate
 
         sim = simulate(scene, t, dx0=x0)
@@ -436,7 +458,7 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
         p.add_argument("--t-end", type=float, required=True, metavar="T",
                        help="duration [s]")
         p.add_argument("--dt", type=float, default=0.01, help="output step [s] (default 0.01)")
-        p.add_argument("--x0", nargs="+", metavar="NAME=VALUE",
+        p.add_argument("--x0", nargs="+", action="extend", metavar="NAME=VALUE",
                        help="initial deviation, e.g. q:elbow=0.1 v:shoulder=0.5 [rad, m, "
                             "rad/s, m/s] (the linear model's state names)")
         p.add_argument("--out", metavar="FILE", type=file_name("--out"),
@@ -455,11 +477,11 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     res = sub.add_parser("response", help="the linear model's response (chapter 9.3) to an "
                                           "initial state and inputs")
     timed(res)
-    res.add_argument("--step", nargs="+", metavar="u:NAME=VALUE",
+    res.add_argument("--step", nargs="+", action="extend", metavar="u:NAME=VALUE",
                      help="step inputs [N*m or N] from t = 0")
-    res.add_argument("--impulse", nargs="+", metavar="u:NAME=VALUE",
+    res.add_argument("--impulse", nargs="+", action="extend", metavar="u:NAME=VALUE",
                      help="impulses at t = 0 [N*m*s or N*s]")
-    res.add_argument("--harmonic", nargs="+", metavar="u:NAME=AMP@W",
+    res.add_argument("--harmonic", nargs="+", action="extend", metavar="u:NAME=AMP@W",
                      help="harmonic inputs AMP sin(W t) [N*m or N, rad/s]")
     res.add_argument("--method", choices=("modal", "exact"), default="modal",
                      help="modal superposition (default) or the matrix exponential")
@@ -470,12 +492,12 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     val = sub.add_parser("validity", help="how large a motion the linear model stays "
                                           "accurate for, per mode")
     val.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
-    val.add_argument("--amplitudes", nargs="+", type=float, default=None,
+    val.add_argument("--amplitudes", nargs="+", action="extend", type=float, default=None,
                      help="initial amplitudes [rad or m] (default: a sweep)")
     val.add_argument("--periods", type=float, default=5, help="horizon in periods (default 5)")
     val.add_argument("--tolerance", type=float, default=0.01,
                      help="relative error that limits the radius (default 0.01)")
-    val.add_argument("--modes", nargs="+", type=int, default=None,
+    val.add_argument("--modes", nargs="+", action="extend", type=int, default=None,
                      help="mode indices as in the mode table (default: every non-rigid one)")
     val.add_argument("--direction", default=None,
                      help="a coordinate name instead of the modes, e.g. elbow or v:elbow")

@@ -98,7 +98,7 @@ def add_commands(sub) -> list[argparse.ArgumentParser]:
                           "per mode)")
     mod.add_argument("--gif", metavar="FILE.gif", type=file_name("--gif"),
                      help="animate the modes over one cycle")
-    mod.add_argument("--mode", type=int, nargs="+", metavar="K",
+    mod.add_argument("--mode", type=int, nargs="+", action="extend", metavar="K",
                      help="rows of the mode table to draw (1 = first row; default: the first "
                           "four that are not rigid)")
     mod.add_argument("--amplitude", type=float, default=None,

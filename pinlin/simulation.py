@@ -284,11 +284,19 @@ def _time_grid(t: object) -> np.ndarray:
     return grid
 
 
+#: The smallest relative tolerance scipy's solvers honour (100 x machine epsilon).
+RTOL_MIN = 100 * np.finfo(float).eps
+
+
 def _tolerance(name: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
         raise ArgumentError(name, f"expected a number, got {type(value).__name__}")
     if not (np.isfinite(value) and value > 0.0):
         raise ArgumentError(name, f"expected a finite number > 0, got {value!r}")
+    if name == "rtol" and value < RTOL_MIN:   # scipy would raise it with a warning
+        raise ArgumentError(name, f"{value:g} is below {RTOL_MIN:.3g} (100 x machine "
+                                  f"epsilon), the smallest relative tolerance the solvers "
+                                  f"honour")
     return float(value)
 
 
