@@ -88,6 +88,16 @@ BAD = {
                     "expected a .png"),
     "nonlinear_with_inputs": (["response", "pendulum", "--t-end", "1", "--step", "u:hinge=1",
                                "--nonlinear"], "--nonlinear"),
+    "impulse_nonlinear": (["response", "pendulum", "--t-end", "1", "--impulse", "hinge=1",
+                           "--nonlinear"], "argument '--nonlinear'"),
+    "x0_given_twice": (["simulate", "pendulum", "--t-end", "1", "--x0", "hinge=1", "--x0",
+                        "hinge=2"], "'q:hinge' is given twice (1 and 2)"),
+    "step_given_twice": (["response", "pendulum", "--t-end", "1", "--step", "hinge=1",
+                          "u:hinge=2"], "'u:hinge' is given twice"),
+    "x0_beyond_limit": (["simulate", "pendulum", "--t-end", "1", "--x0", "hinge=1e7"],
+                        "argument '--x0'"),
+    "rtol_below_eps": (["simulate", "pendulum", "--t-end", "1", "--rtol", "1e-30"],
+                       "argument '--rtol': 1e-30 is below 2.22e-14"),
     "validity_tolerance": (["validity", "pendulum", "--tolerance", "-1"], "tolerance"),
     "validity_out_dir_file": (["validity", "pendulum", "--out-dir", __file__],
                               "it is a file, not a folder"),
@@ -97,6 +107,7 @@ BAD = {
 @pytest.mark.parametrize("case", sorted(BAD))
 def test_bad_motion_options_give_one_line_and_exit_2(case, capfd):
     argv, words = BAD[case]
-    code, _, err = run(capfd, *argv)
+    code, out, err = run(capfd, *argv)
     assert code == 2 and err.count("\n") == 1 and err.startswith("pinlin: error: "), err
     assert words in err, err
+    assert out == "", out    # refused before any result is printed
