@@ -90,13 +90,25 @@ class Simulation:
 class _Inputs:
     """u0 + du(t): none, a callable, or samples held from t_k to t_(k+1) (zero-order hold)."""
 
-    def __init__(self, u: object, t: np.ndarray, u0: np.ndarray) -> None:
+    def __init__(self, u: object, t: np.ndarray, u0: np.ndarray,
+                 names: tuple[str, ...] = ()) -> None:
+        from .signals import Signal
+
         nu = u0.size
         self.u0, self.t = u0, t
         self.samples: np.ndarray | None = None
         self.function: Callable[[float], np.ndarray] | None = None
         self.breaks = np.zeros(0)
         if u is None:
+            return
+        if isinstance(u, Signal):   # steps and sinusoids: u(t) = Re sum_j c_j e^{mu_j t}
+            impulse, c, mu = u.resolve(names, 0.0)
+            if np.any(impulse):
+                raise ArgumentError("u", "an impulse is a jump of the velocities: give it "
+                                         "in the initial deviation dx0 (its velocity part "
+                                         "M^-1 B a), or use pinlin.response for the linear "
+                                         "model")
+            self.function = lambda tk: (np.exp(tk * mu) @ c.T).real
             return
         if callable(u):
             self.function = u
@@ -314,8 +326,10 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             v - v0] (2 nv); for a mechanism also 2 nz (its independent coordinates, the state
             of its linear model); given in all coordinates, the independent part is kept, the
             loops closed and v = R z'. Default zero.
-        u: Input deviations added to u0 [N*m or N]: a callable u(t) -> (nu,), or an (N, nu)
-            array, row k held from t[k] to t[k+1]. Default none.
+        u: Input deviations added to u0 [N*m or N]: a callable u(t) -> (nu,), an (N, nu)
+            array, row k held from t[k] to t[k+1], or a :class:`~pinlin.Signal` of steps
+            and sinusoids (``pinlin.step``, ``pinlin.harmonic``; an impulse is refused: it
+            is a jump of the initial velocities). Default none.
         q0, v0: The point to simulate about instead of the scene's, resolved as
             ``pinlin.operating_point(scene, q=q0, v=v0)``: q0 alone (nq) keeps the scene's
             ``solve`` (u0 holds q0 at rest); with v0 (nv) [rad/s or m/s] the state is given
@@ -358,7 +372,7 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
                 raise ArgumentError("dx0", f"has an entry of size {np.abs(part).max():.3g}; "
                                            f"its {what} are limited to |x| <= {limit:g}")
     s0, notes = dyn.initial_state(deviation)
-    inputs = _Inputs(u, grid, op.u)
+    inputs = _Inputs(u, grid, op.u, system.input_names)
     chosen, stiffness, why = _choose_method(dyn, s0, inputs, grid)  # refuses endless ones
     if method is None:
         method = chosen
