@@ -47,6 +47,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.linalg import LinAlgError
 
 from . import eigensolvers as es
 from . import modal_table
@@ -77,11 +78,11 @@ def symmetric_applicable(model: LinearModel) -> bool:
         return False
     if model.info.get("velocity_terms", True) and np.count_nonzero(model.C_damp):
         return False
-    K = model.K
-    if K.size == 0:
-        return True
-    scale = max(float(np.abs(K).max()), _TINY)
-    return float(np.abs(K - K.T).max()) <= SYMMETRY_RTOL * scale
+    for mat in (model.K, model.M):     # dsygvd reads one triangle of each
+        if mat.size and float(np.abs(mat - mat.T).max()) > SYMMETRY_RTOL * max(
+                float(np.abs(mat).max()), _TINY):
+            return False
+    return True
 
 
 @dataclass(frozen=True, eq=False)
@@ -347,10 +348,18 @@ def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None =
     if method == "general":
         return _general(model, rigid_tol, a2)
     if symmetric_applicable(model):
-        return _symmetric(model, rigid_tol)
+        try:
+            return _symmetric(model, rigid_tol)
+        except LinAlgError as exc:   # M not positive definite (a hand-built model)
+            if method == "symmetric":
+                raise ModelError(f"model '{model.name}': the symmetric (K, M) eigensolver "
+                                 f"needs a positive definite M: {exc}; use "
+                                 f"method='general'") from None
+            return _general(model, rigid_tol, a2)
     if method == "symmetric":
-        raise PinlinError(f"model '{model.name}' has velocity terms or a non-symmetric stiffness: "
-                          "the symmetric (K, M) eigensolver does not apply; use method='general'")
+        raise PinlinError(f"model '{model.name}' has velocity terms or a non-symmetric stiffness "
+                          "or mass matrix: the symmetric (K, M) eigensolver does not apply; use "
+                          "method='general'")
     return _general(model, rigid_tol, a2)
 
 

@@ -303,3 +303,28 @@ def test_unresolved_eigenvalue_prints_as_computed():
         modes = pinlin.modal(pinlin.linearize("standing_box", formulation="canonical"))
     rows = [ln for ln in str(modes).splitlines() if "constraint" in ln]
     assert rows and all(ln.split()[1] == "-10" for ln in rows), rows
+
+
+def _second_order(M, K) -> pinlin.LinearModel:
+    """x = [q; q'], M q'' + K q = 0 written by hand (A = [[0, I], [-M^-1 K, 0]])."""
+    M, K = np.array(M, dtype=float), np.array(K, dtype=float)
+    n = len(M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), np.zeros((n, n))]])
+    return pinlin.LinearModel(A, np.zeros((2 * n, 1)), np.zeros((1, 2 * n)), np.zeros((1, 1)),
+                              tuple(f"x{i}" for i in range(2 * n)), ("u",), ("y",), M=M, K=K,
+                              C_damp=np.zeros((n, n)), Bu=np.zeros((n, 1)), name="by_hand")
+
+
+@pytest.mark.parametrize("M", [[[1.0, 0.5], [0.0, 1.0]],     # not symmetric: dsygvd would
+                               [[1.0, 0.0], [0.0, -1.0]]])   # read one triangle; indefinite
+def test_hand_built_mass_matrix_that_the_pencil_cannot_take(M):
+    """A non-symmetric M took the symmetric path (wrong eigenvalues), an indefinite one raised
+    a raw LinAlgError: both go to the general eigensolver, which gives the eigenvalues of A
+    (numpy's eigvals as the reference), and method='symmetric' says why it does not apply."""
+    model = _second_order(M, [[2.0, 0.0], [0.0, 3.0]])
+    modes = pinlin.modal(model)
+    assert modes.method == "general"
+    np.testing.assert_allclose(np.sort_complex(modes.eigenvalues),
+                               np.sort_complex(np.linalg.eigvals(model.A)), atol=1e-14)
+    with pytest.raises(pinlin.PinlinError, match="symmetric|positive definite"):
+        pinlin.modal(model, method="symmetric")
