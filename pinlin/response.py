@@ -189,7 +189,7 @@ def _march_all(model, std, method, modes, f0, c, mu, t, held, xs0, U, E, F, note
     else:
         dec = _coordinates(std, modes)
         r = _march(dec.matrix, dec.blocks, dec.input_matrix, dec.inverse @ f0, c, mu, t, held,
-                   dec.to_modal(xs0))
+                   xs0 @ dec.inverse.T)
         xs = (r @ dec.right.T).real     # unchecked: _check_finite names where it overflowed
         notes.append(f"modal superposition, {dec.kind} form: {dec.note}")
     x = xs + U @ E.T

@@ -72,7 +72,8 @@ class Signal:
         for part in self.parts:
             a = _amplitude(part.amplitude, input_names, part.kind)
             if part.kind == "impulse":
-                impulse += a
+                with np.errstate(over="ignore"):
+                    impulse += a
             elif part.kind == "step":
                 coef.append(a.astype(complex))
                 mu.append(0.0)
@@ -81,6 +82,12 @@ class Signal:
                 coef += [a * z, a * np.conj(z)]
                 mu += [1j * part.w, -1j * part.w]
         c = np.array(coef).T if coef else np.zeros((m, 0), dtype=complex)
+        with np.errstate(over="ignore", invalid="ignore"):
+            total = np.abs(impulse) + np.abs(c).sum(axis=1)
+        if not np.all(np.isfinite(total)):
+            name = input_names[int(np.argmin(np.isfinite(total)))]
+            raise ArgumentError("u", f"the amplitudes on input {name!r} add up beyond "
+                                     f"float64's range")
         return impulse, c.reshape(m, len(mu)), np.array(mu, dtype=complex)
 
     def __call__(self, t: np.ndarray, input_names: Sequence[str]) -> np.ndarray:

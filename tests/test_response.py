@@ -505,6 +505,10 @@ def test_bad_arguments_are_named():
         (dict(u=np.ones((11, 2))), pinlin.ShapeError, "u must have shape \\(11, 1\\)"),
         (dict(u=pinlin.step({"u:y": 1.0})), pinlin.ArgumentError, "no input named 'u:y'"),
         (dict(u=lambda tk: [1.0, 2.0]), pinlin.ArgumentError, "u\\(t\\) must return 1"),
+        (dict(u=pinlin.step(1e308) + pinlin.step(1e308)), pinlin.ArgumentError,
+         "add up beyond float64's range"),
+        (dict(u=pinlin.impulse(1e308) + pinlin.impulse(1e308)), pinlin.ArgumentError,
+         "add up beyond float64's range"),
     ]
     for kwargs, exc, message in cases:
         args = {"t": t, **kwargs}
