@@ -132,8 +132,6 @@ def _block_gain(M: np.ndarray, c: np.ndarray, b: np.ndarray, s: complex
             at |= (c @ power @ b) != 0
             power = power @ N
         return np.zeros(at.shape, dtype=complex), at
-    if not np.linalg.matrix_rank(N) < k:
-        return c @ np.linalg.solve(-N, b), np.zeros((c.shape[0], b.shape[1]), dtype=bool)
     lam, V = np.linalg.eig(M)
     cv, vb = c @ V, np.linalg.solve(V, b)
     near = np.abs(lam - s) <= 8 * np.finfo(float).eps * max(1.0, float(np.abs(M).max()))
@@ -205,9 +203,12 @@ def frequency_response(model: LinearModel, w: np.ndarray | Sequence[float],
                 mats, np.broadcast_to(b, (len(w), k, len(cols)))))
         except np.linalg.LinAlgError:   # s hits an eigenvalue of the block exactly
             for j in range(len(w)):
-                gain, at = _block_gain(M, c, b, s[j])
-                H[j] += gain
-                pole[j] |= at
+                try:
+                    H[j] += c @ np.linalg.solve(mats[j], b)
+                except np.linalg.LinAlgError:
+                    gain, at = _block_gain(M, c, b, s[j])
+                    H[j] += gain
+                    pole[j] |= at
     H += std.D[np.ix_(rows, cols)]
     if std.F is not None and np.any(std.F) and not model.dt:
         H += s[:, None, None] * std.F[np.ix_(rows, cols)]
