@@ -341,9 +341,19 @@ def _read_matrix(path: Path, key: str, value: Any) -> np.ndarray:
 
 
 def jsonable(obj: Any) -> Any:
-    """``obj`` as plain JSON data: mappings with string keys, lists, numbers, strings."""
+    """``obj`` as plain JSON data: mappings with string keys, lists, numbers, strings.
+
+    Raises:
+        TypeError: a mapping key that is not a string (JSON would turn 3 into "3").
+        ValueError: an integer of more than 300 digits (read back, it would be inf).
+    """
     if isinstance(obj, Mapping):
-        return {str(k): jsonable(v) for k, v in obj.items()}
+        for k in obj:
+            if not isinstance(k, str):
+                raise TypeError(f"key {k!r:.60} is not a string (JSON object keys are)")
+        return {k: jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, int) and not isinstance(obj, bool) and abs(obj) >= 10**300:
+        raise ValueError("an integer of more than 300 digits would load back as inf")
     if isinstance(obj, Sequence) and not isinstance(obj, str):
         return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):

@@ -70,3 +70,19 @@ def test_assembled_models_pass_the_public_checks(target):
     point = {f.name: getattr(op, f.name) for f in dataclasses.fields(op)}
     assert op.__dict__.keys() == point.keys()
     assert pinlin.OperatingPoint(**point).__dict__ == op.__dict__
+
+
+@pytest.mark.parametrize(("info", "words"), [
+    ({"big": 10**400}, "more than 300 digits"),      # loaded back it would be inf
+    ({3: "three"}, "key 3 is not a string"),          # loaded back it would be "3"
+    ({"nested": {"ok": 1, (1, 2): 0}}, "is not a string"),
+])
+@pytest.mark.parametrize("suffix", [".npz", ".mat", ".json"])
+def test_info_that_would_not_load_back_the_same_is_refused(info, words, suffix, tmp_path):
+    import dataclasses
+
+    model = pinlin.linearize("pendulum")
+    path = tmp_path / f"m{suffix}"
+    with pytest.raises(pinlin.ModelFileError, match=words):
+        dataclasses.replace(model, info={**model.info, **info}).save(path)
+    assert not path.exists()
