@@ -293,7 +293,16 @@ def _time_grid(t: object) -> np.ndarray:
             or np.any(np.diff(grid) <= 0.0):
         raise ArgumentError("t", "expected a 1-D, finite, strictly increasing sequence of "
                                  "times [s] with at least one entry")
+    if grid.size > MAX_SAMPLES:
+        raise ArgumentError("t", f"{grid.size} output times; at most {MAX_SAMPLES} (each is "
+                                 f"a nonlinear state turned into the model's coordinates): "
+                                 f"space them wider or split the horizon")
     return grid
+
+
+#: Most output times one simulation returns (the CLI's limit too): each costs a few
+#: microseconds of Python (chart difference, outputs) after the integration.
+MAX_SAMPLES = 1_000_000
 
 
 #: The smallest relative tolerance scipy's solvers honour (100 x machine epsilon).

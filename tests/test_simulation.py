@@ -308,6 +308,9 @@ def test_outputs_and_names():
     ({"t": [0.0, 1.0], "u": np.zeros((3, 1))}, pinlin.ArgumentError, r"\(2, 1\)"),
     ({"t": [0.0, 1.0], "method": "Euler"}, pinlin.ArgumentError, "DOP853"),
     ({"t": [0.0, 1.0], "rtol": 0.0}, pinlin.ArgumentError, "> 0"),
+    ({"t": [0.0, 1.0], "rtol": 1e-15}, pinlin.ArgumentError, "below 2.22e-14"),
+    ({"t": np.arange(1_000_001) * 1e-6}, pinlin.ArgumentError,
+     "1000001 output times; at most 1000000"),
     # read as numbers by np.array, or beyond what a float resolves: refused, not simulated
     ({"t": [0.0, 1.0], "dx0": ["0.1", "0"]}, pinlin.ArgumentError, "got text"),
     ({"t": [0.0, 1.0], "dx0": [True, False]}, pinlin.ArgumentError, "got booleans"),
