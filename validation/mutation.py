@@ -170,6 +170,17 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     "penalty_limit_dropped": (
         "pinlin/options.py", "            if not value <= PENALTY_LIMIT:",
         "            if False:", "penalty options whose products overflow are accepted"),
+    "frequency_pole_left_nan": (
+        "pinlin/frequency.py", "    H[pole] = np.inf\n", "",
+        "a frequency response exactly at a pole keeps the 0 placeholder instead of inf"),
+    "one_joint_jacobian_flat": (
+        "pinlin/constraints.py",
+        "J1 = pin.getFrameJacobian(kin, kd, f1, LWA).reshape(6, -1)[:, cols]",
+        "J1 = pin.getFrameJacobian(kin, kd, f1, LWA)[:, cols]",
+        "a one-joint robot's 6x1 frame Jacobian used as eigenpy returns it (a vector)"),
+    "symmetric_mass_unchecked": (
+        "pinlin/modal.py", "    for mat in (model.K, model.M):", "    for mat in (model.K,):",
+        "modal takes the symmetric pencil path with a non-symmetric M"),
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),
