@@ -296,9 +296,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     with _options_named({"dx0": "--x0", "rtol": "--rtol", "atol": "--atol",
                          "method": "--method"}):
         sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
-    n = len(sim.state_names) // 2
+    n = len(sim.independent_names) // 2      # z: the linear model's states
+    effects = (scene.effects.in_play() + (["loops"] if scene.loops else [])
+               + (["contacts"] if scene.contacts else []))
     print(f"simulated '{scene.name}' (nonlinear, the scene's effects: "
-          f"{', '.join(scene.effects.in_play()) or 'none'}) over {t[-1]:g} s: "
+          f"{', '.join(effects) or 'none'}) over {t[-1]:g} s: "
           f"{sim.info.get('method')}, {plural(int(sim.info.get('nfev', 0)), 'evaluation')}")
     if sim.drift is not None and sim.drift.size and np.any(sim.drift):
         print(f"constraint drift: |Phi| <= {sim.drift[:, 0].max():.1e}, |Phi_q v| <= "
@@ -306,9 +308,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if sim.energy is not None:
         print(f"energy change: {np.abs(sim.energy - sim.energy[0]).max():.3e} J")
     final = ", ".join(f"{name} = {value:.6g}" for name, value
-                      in zip(sim.state_names[:n], sim.z[-1, :n], strict=True))
+                      in zip(sim.independent_names[:n], sim.z[-1, :n], strict=True))
     print(f"final deviation: {final}")
-    states = {name: sim.z[:, k] for k, name in enumerate(sim.state_names)}
+    states = {name: sim.z[:, k] for k, name in enumerate(sim.independent_names)}
     if out is not None:
         outputs = {f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)}
         _write_history(out, sim.t, {**states, **outputs})
@@ -316,7 +318,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if plot is not None:
         _plot_histories(plot, f"{scene.name}: nonlinear simulation", sim.t,
                         [(name, sim.t, sim.z[:, k], "-")
-                         for k, name in enumerate(sim.state_names[:n])])
+                         for k, name in enumerate(sim.independent_names[:n])])
         print(f"plot written to {plot}")
     return 0
 
@@ -391,8 +393,9 @@ def _cmd_response(args: argparse.Namespace) -> int:
         print(f"nonlinear simulation from the same state: max |x_nl - x_lin| = {diff:.3e} "
               f"({diff / scale:.2e} of the largest linear value)")
         curves += [(f"{name} (nonlinear)", sim.t, sim.z[:, k], "--")
-                   for k, name in enumerate(sim.state_names[:n])]
-        columns.update({f"nl:{name}": sim.z[:, k] for k, name in enumerate(sim.state_names)})
+                   for k, name in enumerate(sim.independent_names[:n])]
+        columns.update({f"nl:{name}": sim.z[:, k]
+                        for k, name in enumerate(sim.independent_names)})
     if out is not None:
         _write_history(out, res.t, columns)
         print(f"time histories written to {out}")

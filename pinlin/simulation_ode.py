@@ -112,11 +112,13 @@ class Mechanism:
 
     def __init__(self, system: System, op: OperatingPoint) -> None:
         if system.base_joint is not None:
-            raise ModelError(f"scene '{system.scene.name}': loops on a floating-base robot are "
-                             "not supported by pinlin.simulate yet")
+            raise ModelError(f"scene '{system.scene.name}': loops or contacts on a "
+                             "floating-base robot (a standing robot) are not supported by "
+                             "pinlin.simulate yet (fixed-base mechanisms are)")
         if system.constraints.has_welds:
-            raise ModelError(f"scene '{system.scene.name}': weld loops are not supported by "
-                             "pinlin.simulate yet (point loops and mimic couplings are)")
+            raise ModelError(f"scene '{system.scene.name}': weld loops and weld contacts are "
+                             "not supported by pinlin.simulate yet (point loops, point "
+                             "contacts and mimic couplings are)")
         self.system, self.model, self.op = system, system.model, op
         self.cons, self.nv = system.constraints, system.nv
         self.joint_nv = np.zeros(self.nv, dtype=int)

@@ -32,6 +32,31 @@ def test_simulate_writes_what_the_api_computes(capfd, tmp_path):
     assert png.read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.parametrize("scene", ["four_bar", "slider_crank"])
+def test_simulate_of_a_mechanism_writes_its_independent_states(scene, capfd, tmp_path):
+    """A mechanism's simulation has z (the linear model's 2 nz states) besides x (all 2 nv):
+    the CLI labels and writes z by the model's state names (before, a zip/IndexError after
+    printing half the result), and `response --nonlinear` compares the same columns."""
+    csv = tmp_path / "sim.csv"
+    model = pinlin.linearize(scene)
+    first = model.state_names[0]
+    code, out, err = run(capfd, "simulate", scene, "--t-end", "0.5", "--dt", "0.05",
+                         "--x0", f"{first}=0.01", "--out", str(csv))
+    assert code == 0, err
+    assert "loops" in out.splitlines()[0]      # the effects named include the loops
+    header, *rows = csv.read_text().splitlines()
+    n = model.n_states
+    assert header.split(",")[1:n + 1] == list(model.state_names)
+    table = np.array([[float(x) for x in r.split(",")] for r in rows])
+    x0 = np.zeros(n)
+    x0[0] = 0.01
+    sim = pinlin.simulate(scene, np.arange(11) * 0.05, dx0=x0)
+    np.testing.assert_array_equal(table[:, 1:n + 1], sim.z)
+    code, out, err = run(capfd, "response", scene, "--t-end", "0.5", "--x0", f"{first}=0.01",
+                         "--nonlinear")
+    assert code == 0 and "nonlinear simulation from the same state" in out, err
+
+
 def test_response_writes_what_the_api_computes(capfd, tmp_path):
     npz = tmp_path / "r.npz"
     code, out, err = run(capfd, "response", "double_pendulum", "--t-end", "2", "--x0",
