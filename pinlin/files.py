@@ -124,7 +124,10 @@ def _pinlin_content(target: Path, suffix: str) -> bool:
         if suffix == ".mat":
             from scipy.io import whosmat
 
-            names = {name for name, _, _ in whosmat(str(target))}
+            try:
+                names = {name for name, _, _ in whosmat(str(target))}
+            except Exception:  # noqa: BLE001 - scipy's reader of a foreign file raises many
+                return False   # kinds (NotImplementedError for v7.3, zlib.error, IndexError)
             return {"state_names", "meta"} <= names
         with target.open("rb") as fh:
             head = fh.read(_HEAD)

@@ -708,7 +708,13 @@ def test_outputs_never_replace_a_file_of_another_kind(args, how, capfd, tmp_path
     (".npz", None),          # a user's own archive: a zip, but none of pinlin's arrays
     (".npz", "names"),       # one that shares a name with pinlin's, and holds more
     (".mat", b"MATLAB 5.0 MAT-file, a user's own data" + bytes(100)),
-], ids=["json", "npz", "npz_sharing_names", "mat"])
+    # MATLAB's v7.3 (HDF5) header: scipy raises NotImplementedError on it
+    (".mat", b"MATLAB 7.3 MAT-file, HDF5 schema 1.00 .".ljust(124, b" ") + b"\x00\x02IM"
+     + b"\x89HDF\r\n\x1a\n" + bytes(64)),
+    (".mat", b"MATLAB 5.0 MAT-file"),         # truncated: IndexError inside scipy
+    (".mat", "corrupt"),                      # compressed v5 with a damaged body: zlib.error
+], ids=["json", "npz", "npz_sharing_names", "mat", "mat_v73", "mat_truncated",
+        "mat_corrupt"])
 def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content, capfd,
                                                                 tmp_path):
     """Every JSON object starts with '{' and every .npz is a zip: for the data formats pinlin
@@ -716,6 +722,13 @@ def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content,
     target = tmp_path / f"mine{suffix}"
     if content is None:
         np.savez(target, x=np.ones(3))
+    elif content == "corrupt":
+        import scipy.io
+
+        scipy.io.savemat(target, {"x": np.arange(1000.0)}, do_compression=True)
+        raw = bytearray(target.read_bytes())
+        raw[200:260] = bytes(60)
+        target.write_bytes(bytes(raw))
     elif content == "names":
         np.savez(target, state_names=np.array(["x"]), A=np.ones((1, 1)), meta=np.array("{}"),
                  important=np.ones(3))
