@@ -143,17 +143,20 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
                                                                 "processes"))
     n_points = len(model)
     kind = "schedule of rest points" if model.info.get("at_rest") else "trajectory"
+    linearized = model
+    if args.dt is not None:   # before any line is printed: a dt that overflows is refused
+        method = args.discretization or "zoh"
+        with _options_named({"dt": "--dt", "method": "--discretization"}):
+            model = model.discretize(args.dt, method)
     print(f"{kind} of '{model.name}': {plural(n_points, 'point')}, "
           f"{plural(len(model.state_names), 'state')}, "
           f"{plural(len(model.input_names), 'input')}, "
           f"{plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
           f"derivatives ({model.info['path']}), {where}: {elapsed:.3g} s "
           f"({1e6 * elapsed / n_points:.3g} us per point)")
-    if model.M is not None:
+    if linearized.M is not None:
         print("second-order matrices M, C_damp, K, Bu stored at every point")
     if args.dt is not None:
-        method = args.discretization or "zoh"
-        model = model.discretize(args.dt, method)
         print(f"discretized: {method}, dt = {args.dt:g} s")
     model.save(out)
     print(f"models written to {out}")

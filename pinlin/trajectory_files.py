@@ -125,7 +125,13 @@ def _read_npz_states(path: Path, raw: bytes
     for key, arr in doc.items():
         if arr.dtype.kind not in "fiu":
             raise ModelFileError(path, f"member '{key}' must hold numbers, got {arr.dtype}")
+        if arr.ndim == 0:
+            raise ModelFileError(path, f"member '{key}' is a single number; expected an array "
+                                       f"of shape {_SHAPES[key]}, one row per point")
     return doc["q"], doc.get("v"), doc.get("u"), doc.get("t")
+
+
+_SHAPES = {"q": "(N, nq)", "v": "(N, nv)", "u": "(N, nu)", "t": "(N,)"}
 
 
 def _content_lines(text: str) -> list[tuple[int, str]]:
