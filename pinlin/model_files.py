@@ -22,6 +22,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from .arrays import non_numbers
 from .exceptions import ModelFileError, PinlinError
 from .files import as_path
 from .operating_point import OperatingPoint
@@ -136,6 +137,18 @@ def read_model(path: str | Path, build: Callable[..., Model]) -> Model:
 def _model_fields(path: Path, doc: Mapping[str, Any], meta: Mapping[str, Any]
                   ) -> dict[str, Any]:
     """The model's fields from parsed file content (matrices as arrays or nested lists)."""
+    if meta.get("kind") == "pinlin trajectory model":
+        raise _bad(path, "it is a trajectory model file (one model per point): load it with "
+                         "pinlin.TrajectoryModel.load")
+    known = {*MATRICES, *NAME_FIELDS, *(_META_KEYS if doc is meta else ())}
+    unknown = sorted(k for k in doc if k not in known)
+    if unknown:
+        raise _bad(path, f"unknown key {unknown[0]!r:.60}; a model file holds "
+                       f"{', '.join(MATRICES)}, the names and its metadata")
+    unknown = [] if doc is meta else sorted(k for k in meta if k not in _META_KEYS)
+    if unknown:
+        raise _bad(path, f"unknown metadata key {unknown[0]!r:.60}; expected "
+                       f"{', '.join(_META_KEYS)}")
     missing = [k for k in ("A", "B", "C", "D", *NAME_FIELDS) if k not in doc]
     if missing:
         raise _bad(path, f"missing {', '.join(repr(k) for k in missing)} (expected A, B, C, "
@@ -168,6 +181,9 @@ def _model_fields(path: Path, doc: Mapping[str, Any], meta: Mapping[str, Any]
             "dt": float(dt)}
 
 
+_META_KEYS = ("name", "info", "dt", "operating_point")
+
+
 def _bad(path: Path, reason: str) -> ModelFileError:
     """The error for file content that is not a model pinlin wrote."""
     return ModelFileError(path, f"not a pinlin model file: {reason}")
@@ -178,6 +194,16 @@ def _describe(exc: BaseException) -> str:
     if isinstance(exc, KeyError):
         text = f"missing {text}"
     return text[:200] or type(exc).__name__
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's members; a key given twice is refused (json keeps the last)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"key {key!r:.60} appears twice")
+        out[key] = value
+    return out
 
 
 def _parse_int(text: str) -> int | float:
@@ -192,8 +218,10 @@ def _read_json(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, 
     except UnicodeDecodeError as exc:
         raise _bad(path, f"not UTF-8 text: {exc}") from None
     try:
-        doc = json.loads(text, parse_int=_parse_int)
+        doc = json.loads(text, parse_int=_parse_int, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
+        raise _bad(path, f"not valid JSON: {exc}") from None
+    except ValueError as exc:
         raise _bad(path, f"not valid JSON: {exc}") from None
     except RecursionError:
         raise _bad(path, "not valid JSON: nested too deeply") from None
@@ -215,6 +243,9 @@ def _read_npz(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, A
     try:
         _check_npy_headers(path, raw)
         with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+            if len(set(z.files)) != len(z.files):
+                twice = next(k for k in z.files if z.files.count(k) > 1)
+                raise _bad(path, f"member '{twice}' appears twice in the archive")
             doc = {}
             for k in z.files:
                 try:
@@ -265,8 +296,8 @@ def _check_npy_headers(path: Path, raw: bytes) -> None:
 
 def _meta_from_text(path: Path, text: str) -> Mapping[str, Any]:
     try:
-        meta = json.loads(text, parse_int=_parse_int)
-    except (json.JSONDecodeError, RecursionError) as exc:
+        meta = json.loads(text, parse_int=_parse_int, object_pairs_hook=_unique_keys)
+    except (ValueError, RecursionError) as exc:
         raise _bad(path, f"'meta' is not valid JSON: {_describe(exc)}") from None
     if not isinstance(meta, dict):
         raise _bad(path, f"'meta' must be a JSON object, got {_json_kind(meta)}")
@@ -322,15 +353,33 @@ def _read_names(path: Path, key: str, value: Any) -> list[str]:
     return value
 
 
+def _not_numbers(value: Any) -> str | None:
+    """What in nested JSON lists is not a number ("text", "booleans (True/False)"), which
+    np.array(..., dtype=float) would read as numbers (a boolean among floats becomes 1.0)."""
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, bool):
+            return "booleans (True/False)"
+        elif isinstance(item, str):
+            return "text"
+    return None
+
+
 def _read_matrix(path: Path, key: str, value: Any) -> np.ndarray:
     if isinstance(value, np.ndarray):
-        if value.dtype.kind not in "fiub":
+        if value.dtype.kind not in "fiu":
             raise _bad(path, f"'{key}' must be a real matrix, got dtype {value.dtype}")
         arr = value.astype(float)
     else:
         if not isinstance(value, list):
             raise _bad(path, f"'{key}' must be a matrix (a list of rows), got "
                            f"{_json_kind(value)}")
+        bad = _not_numbers(value)
+        if bad:
+            raise _bad(path, f"'{key}' must hold numbers, got {bad}")
         try:
             arr = np.array(value, dtype=float)
         except (TypeError, ValueError, OverflowError) as exc:
@@ -365,12 +414,47 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
-def _op_from_dict(d: Mapping[str, Any]) -> OperatingPoint:
-    def arr(key):
-        return None if d.get(key) is None else np.asarray(d[key], float)
+_OP_ARRAYS = ("q", "v", "u", "a", "residual", "y", "lam")
+#: ``contact_forces`` is written for readers of the file; loading derives it from lam again.
+_OP_KEYS = (*_OP_ARRAYS, "equilibrium", "tolerance", "notes", "lam_names", "contact_forces")
 
-    return OperatingPoint(q=arr("q"), v=arr("v"), u=arr("u"), a=arr("a"),
-                          residual=arr("residual"), equilibrium=bool(d["equilibrium"]),
-                          tolerance=float(d["tolerance"]), y=arr("y"), lam=arr("lam"),
-                          notes=tuple(d.get("notes", ())),
-                          lam_names=tuple(d.get("lam_names", ())))
+
+def _op_from_dict(d: Mapping[str, Any]) -> OperatingPoint:
+    """The operating point of a model file, checked as pinlin writes it (ValueError naming
+    the key otherwise: the caller says the field is malformed)."""
+    unknown = sorted(k for k in d if k not in _OP_KEYS)
+    if unknown:
+        raise ValueError(f"unknown key {unknown[0]!r:.60}; expected {', '.join(_OP_KEYS)}")
+
+    def arr(key: str, required: bool = False) -> np.ndarray | None:
+        value = d.get(key)
+        if value is None:
+            if required:
+                raise ValueError(f"missing '{key}'")
+            return None
+        bad = _not_numbers(value) if isinstance(value, list) else non_numbers(value)
+        if bad:
+            raise ValueError(f"'{key}' must hold numbers, got {bad}")
+        out = np.asarray(value, float)
+        if out.ndim != 1:
+            raise ValueError(f"'{key}' must be a list of numbers, got shape {out.shape}")
+        if not np.isfinite(out).all():
+            raise ValueError(f"'{key}' has NaN or inf entries")
+        return out
+
+    def strings(key: str) -> tuple[str, ...]:
+        value = d.get(key, ())
+        if not isinstance(value, list | tuple) or not all(isinstance(x, str) for x in value):
+            raise ValueError(f"'{key}' must be a list of strings")
+        return tuple(value)
+
+    equilibrium, tolerance = d.get("equilibrium"), d.get("tolerance")
+    if not isinstance(equilibrium, bool):
+        raise ValueError(f"'equilibrium' must be true or false, got {equilibrium!r:.60}")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) \
+            or not (math.isfinite(tolerance) and tolerance >= 0):
+        raise ValueError(f"'tolerance' must be a number >= 0, got {tolerance!r:.60}")
+    return OperatingPoint(q=arr("q", True), v=arr("v"), u=arr("u"), a=arr("a"),
+                          residual=arr("residual"), equilibrium=equilibrium,
+                          tolerance=float(tolerance), y=arr("y"), lam=arr("lam"),
+                          notes=strings("notes"), lam_names=strings("lam_names"))

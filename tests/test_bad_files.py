@@ -242,6 +242,17 @@ def _npz_member(path: Path, name: str, data: bytes) -> None:
         z.writestr(name, data)
 
 
+def _npz_twice(path: Path, members: dict) -> None:
+    """The members pinlin writes, then a second A.npy (zip allows repeated names)."""
+    _npz(path, **members)
+    buf = io.BytesIO()
+    np.save(buf, np.full((2, 2), 7.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)     # zipfile: "Duplicate name"
+        with zipfile.ZipFile(path, "a") as z:
+            z.writestr("A.npy", buf.getvalue())
+
+
 def _valid_members(model: LinearModel) -> dict:
     buf = io.BytesIO(model._serialized(Path("x.npz"), ".npz"))
     with np.load(buf) as z:
@@ -279,6 +290,32 @@ BAD_FILES = {
         "field 'operating_point' is malformed"),
     "json_missing_names": ("m.json", lambda p, m: p.write_text(
         _edit_json(m, lambda d: d.pop("input_names"))), "missing 'input_names'"),
+    # hand edits that json / np.array would have read silently
+    "json_key_twice": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: None).rstrip()[:-1] + ', "A": [[7.0, 0.0], [0.0, 7.0]]}'),
+        "key 'A' appears twice"),
+    "json_text_entry": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["A"][0].__setitem__(0, "1"))), "'A' must hold numbers, got text"),
+    "json_boolean_entry": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["A"][0].__setitem__(0, True))), "got booleans"),
+    "json_unknown_key": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d.__setitem__("a", [[1.0]]))), "unknown key 'a'"),
+    "json_equilibrium_text": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["operating_point"].__setitem__("equilibrium", "no"))),
+        "'equilibrium' must be true or false"),
+    "json_op_nan": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["operating_point"].__setitem__("q", [float("nan")]))),
+        "'q' has NaN or inf entries"),
+    "json_op_negative_tolerance": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["operating_point"].__setitem__("tolerance", -1.0))),
+        "'tolerance' must be a number >= 0"),
+    "json_op_without_q": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["operating_point"].pop("q"))), "missing 'q'"),
+    "npz_member_twice": ("m.npz", lambda p, m: _npz_twice(p, _valid_members(m)),
+                         "member 'A' appears twice"),
+    "npz_unknown_member": ("m.npz", lambda p, m: _npz(p, **{**_valid_members(m),
+                                                           "extra": np.eye(2)}),
+                           "unknown key 'extra'"),
     "npz_truncated": ("m.npz", lambda p, m: p.write_bytes(
         m._serialized(p, ".npz")[:300]), "not an .npz archive"),
     "npz_random_bytes": ("m.npz", lambda p, m: p.write_bytes(

@@ -326,7 +326,7 @@ def test_model_files_are_not_mixed_up(tmp_path):
     single = traj.at(0)
     traj.save(tmp_path / "traj.npz")
     single.save(tmp_path / "one.npz")
-    with pytest.raises(pinlin.ModelFileError, match="must be a 2-D matrix"):
+    with pytest.raises(pinlin.ModelFileError, match="load it with pinlin.TrajectoryModel.load"):
         pinlin.LinearModel.load(tmp_path / "traj.npz")
     with pytest.raises(pinlin.ModelFileError, match="not a pinlin trajectory model file"):
         pinlin.TrajectoryModel.load(tmp_path / "one.npz")
