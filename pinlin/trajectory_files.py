@@ -281,6 +281,11 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
     missing = [k for k in (*_STACKS, *_NAMES) if k not in doc]
     if missing:
         raise ModelFileError(path, f"missing {', '.join(map(repr, missing))}")
+    unknown = sorted(set(doc) - {*_STACKS, *_OPTIONAL, *_NAMES})
+    if unknown:
+        raise ModelFileError(path, f"unknown member {unknown[0]!r:.60}; a trajectory model "
+                                   f"file holds {', '.join((*_STACKS, *_OPTIONAL))} and the "
+                                   f"names")
     fields: dict[str, Any] = {k: _read_names(path, k, doc[k]) for k in _NAMES}
     for key in (*_STACKS, *_OPTIONAL):
         if key not in doc:
@@ -295,7 +300,10 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
                                    f"{A.shape}")
     N = A.shape[0]
     if "t" in fields:
-        fields["t"] = fields["t"].reshape(-1)
+        fields["t"] = t = fields["t"].reshape(-1)
+        if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+            raise ModelFileError(path, "'t' must be finite times that increase strictly, as "
+                                       "linearize_trajectory takes them")
     n, m, p = (len(fields[k]) for k in _NAMES)
     half = n // 2  # second-order matrices: the coordinates of the states
     for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (1, p, m)),

@@ -335,6 +335,14 @@ def test_model_files_are_not_mixed_up(tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"PK\x03\x04 truncated")
     with pytest.raises(pinlin.ModelFileError, match="bad.npz"):
         pinlin.TrajectoryModel.load(tmp_path / "bad.npz")
+    # hand edits of a saved file: times reversed, a member pinlin does not write
+    with np.load(tmp_path / "traj.npz") as z:
+        members = {k: z[k] for k in z.files}
+    for edit, words in (({"t": np.array([2.0, 1.0, 0.0])}, "increase strictly"),
+                        ({"extra": np.ones(3)}, "unknown member 'extra'")):
+        np.savez(tmp_path / "edited.npz", **{**members, **edit})
+        with pytest.raises(pinlin.ModelFileError, match=words):
+            pinlin.TrajectoryModel.load(tmp_path / "edited.npz")
 
 
 @pytest.mark.parametrize("method", ["zoh", "euler"])
