@@ -305,6 +305,11 @@ def report_html(scene, *, model=None, modes: ModalAnalysis | None = None,
     plot_html = "".join(f"<h2>{_e(head)}</h2>" + "".join(
         f"<p><img class='plot' alt='{_e(head)}' src='{src}'></p>" for src in srcs)
         for head, srcs in plots)
+    if include_validity and first is None:   # asked for, and nothing to check: say so
+        plot_html += ("<h2>Validity of the linear model</h2><p class='note'>Not computed: "
+                      "the model has no mode that is neither rigid nor a constraint mode "
+                      "among those drawn, so no motion to compare with a nonlinear "
+                      "simulation.</p>")
     undrawn = len(modes.modes()) - len(entries)
     note = (f"<p class='note'>{undrawn} mode(s) of the table are not drawn (rigid or "
             f"constraint modes beyond the first {max_modes}, or not assemblable).</p>"

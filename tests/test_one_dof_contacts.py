@@ -60,3 +60,11 @@ def test_held_pendulum_at_a_given_state_has_no_states(tmp_path):
     model = pinlin.linearize(str(_scene(tmp_path, "weld")), q=np.array([HINGE]),
                              v=np.array([0.0]))
     assert model.n_states == 0
+
+
+def test_report_asked_for_validity_says_why_there_is_none(tmp_path):
+    """Nothing moves, so there is no mode to simulate: the report says so where the validity
+    plots would be (before, the request was dropped without a word)."""
+    out = pinlin.write_html_report(str(_scene(tmp_path, "weld")), tmp_path / "held.html",
+                                   include_validity=True)
+    assert "Validity of the linear model</h2><p class='note'>Not computed" in out.read_text()
