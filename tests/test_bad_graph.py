@@ -402,6 +402,8 @@ def test_folder_missing_file_fifo_and_symlink_loop(tmp_path, capfd):
     (rc().replace("type = 'D'", "type = 4"), "branches[1].type", "got 4"),
     (rc().replace("type = 'D'", "type = 'd'"), "branches[1].type", "unknown element type 'd'"),
     (rc() + branch("R", "D", "a", "g", value="1.0"), "branches[3].name", "used twice"),
+    ("domain = 'thermal'\n" + rc() + branch("L", "T", "b", "g", value="1.0"),
+     "branches[3].type", "the thermal domain has no T-type"),
     (rc().replace("value = 1.0\n", "value = 1.0\ninput = 3.0\n", 1), "branches[1].input",
      "a D-type element takes no input"),
     (rc().replace("to = 'g'\n", "to = 'g'\ninput = 'x'\n", 1), "branches[0].input",

@@ -119,6 +119,12 @@ class Graph:
         """
         branch = self._make_branch(name, type, from_, to, value, relation, input, field)
         fld = field or f"branches.{name}"
+        if type == "T" and self.domain == "thermal":
+            raise GraphError(self.source, f"{fld}.type", "the thermal domain has no T-type "
+                                                         "(inductance-like) element: heat flow "
+                                                         "stores no energy (Rowell); use A "
+                                                         "(thermal capacitance) and D (thermal "
+                                                         "resistance)")
         if len(self.branches) >= MAX_BRANCHES:
             raise GraphError(self.source, "branches", f"more than {MAX_BRANCHES} branches (the "
                                                       "dense matrix method's time grows as the "
