@@ -159,8 +159,12 @@ def independent_rows(jac: np.ndarray, groups: list[tuple[str, str, range]], sour
     kept = set(keep.tolist())
     for fld, what, own in groups:
         if not kept.intersection(own):
-            raise SceneError(source, fld, f"{what} adds no independent constraint: every row "
-                                          "repeats others")
+            rows = jac[list(own)]
+            why = ("its frame cannot move at this configuration (its rows of the constraint "
+                   "Jacobian are zero: it sits on the base or on a joint axis)"
+                   if not np.abs(rows).max(initial=0.0) > RANK_TOL * max(scale, 1e-300)
+                   else "every row repeats others")
+            raise SceneError(source, fld, f"{what} adds no independent constraint: {why}")
     return keep
 
 

@@ -68,3 +68,12 @@ def test_report_asked_for_validity_says_why_there_is_none(tmp_path):
     out = pinlin.write_html_report(str(_scene(tmp_path, "weld")), tmp_path / "held.html",
                                    include_validity=True)
     assert "Validity of the linear model</h2><p class='note'>Not computed" in out.read_text()
+
+
+def test_contact_on_the_joint_axis_says_its_frame_cannot_move(tmp_path):
+    """The bob's own frame sits on the hinge axis: a point contact there holds nothing, and
+    the error says why (before: "every row repeats others", which suggests another contact)."""
+    path = _scene(tmp_path, "point")
+    path.write_text(path.read_text().replace('frame = "tip"', 'frame = "bob"'))
+    with pytest.raises(pinlin.SceneError, match="its frame cannot move at this configuration"):
+        pinlin.linearize(str(path))
