@@ -4,7 +4,8 @@ column names, operating points, poles, plurals (the parsing itself is in :mod:`p
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -17,6 +18,17 @@ if TYPE_CHECKING:
 
 #: Width of printed matrices: wider ones are printed in labelled blocks of columns.
 MATRIX_WIDTH = 100
+
+
+@contextmanager
+def options_named(options: dict[str, str]) -> Iterator[None]:
+    """Re-raise a library ArgumentError naming its command-line option (``dx0`` is --x0)."""
+    try:
+        yield
+    except ArgumentError as exc:
+        if exc.argument not in options:
+            raise
+        raise ArgumentError(options[exc.argument], exc.reason) from None
 
 
 def plural(count: int, word: str, plural: str | None = None) -> str:

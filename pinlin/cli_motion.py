@@ -8,12 +8,11 @@ from __future__ import annotations
 import argparse
 import io
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-from .cli_format import check_out, file_name, folder_name, plural
+from .cli_format import check_out, file_name, folder_name, options_named, plural
 from .exceptions import ArgumentError, ModelFileError
 
 #: The trajectory progress bar appears once a run has taken this long [s].
@@ -146,7 +145,7 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
     linearized = model
     if args.dt is not None:   # before any line is printed: a dt that overflows is refused
         method = args.discretization or "zoh"
-        with _options_named({"dt": "--dt", "method": "--discretization"}):
+        with options_named({"dt": "--dt", "method": "--discretization"}):
             model = model.discretize(args.dt, method)
     print(f"{kind} of '{model.name}': {plural(n_points, 'point')}, "
           f"{plural(len(model.state_names), 'state')}, "
@@ -296,7 +295,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     scene = Scene.resolve(args.target)
     model = linearize(scene)
     x0 = _initial(model, args.x0)
-    with _options_named({"dx0": "--x0", "rtol": "--rtol", "atol": "--atol",
+    with options_named({"dx0": "--x0", "rtol": "--rtol", "atol": "--atol",
                          "method": "--method"}):
         sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
     n = len(sim.independent_names) // 2      # z: the linear model's states
@@ -324,17 +323,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                          for k, name in enumerate(sim.independent_names[:n])])
         print(f"plot written to {plot}")
     return 0
-
-
-@contextmanager
-def _options_named(options: dict[str, str]):
-    """Re-raise a library ArgumentError naming its command-line option (``dx0`` is --x0)."""
-    try:
-        yield
-    except ArgumentError as exc:
-        if exc.argument not in options:
-            raise
-        raise ArgumentError(options[exc.argument], exc.reason) from None
 
 
 def _signals(args: argparse.Namespace, model):
@@ -374,7 +362,7 @@ def _cmd_response(args: argparse.Namespace) -> int:
     model = linearize(scene)
     x0 = _initial(model, args.x0)
     u = _signals(args, model)
-    with _options_named({"x0": "--x0", "method": "--method"}):
+    with options_named({"x0": "--x0", "method": "--method"}):
         res = response(model, t, x0=x0, u=u, method=args.method)
     n = len(model.state_names) // 2
     if n == 0:
