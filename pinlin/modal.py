@@ -79,8 +79,9 @@ def symmetric_applicable(model: LinearModel) -> bool:
     if model.info.get("velocity_terms", True) and np.count_nonzero(model.C_damp):
         return False
     for mat in (model.K, model.M):     # dsygvd reads one triangle of each
-        if mat.size and not (mat == mat.T).all() and float(np.abs(mat - mat.T).max()) \
-                > SYMMETRY_RTOL * max(float(np.abs(mat).max()), _TINY):
+        skew = mat - mat.T
+        if skew.any() and float(np.abs(skew).max()) > SYMMETRY_RTOL * max(
+                float(np.abs(mat).max()), _TINY):
             return False
     return True
 
