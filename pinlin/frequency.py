@@ -12,9 +12,11 @@ computed from the modal form x = T r (:mod:`pinlin.modal_coordinates`)::
 
 with a Jordan or Schur block of the modal form solved as one small system (jw I - Lam_b)^-1.
 A discrete model (dt > 0) gives H(e^{jw dt}) = C (z I - A)^-1 B + D at z = e^{jw dt}, from the
-eigenvectors of its A. Where jw hits an eigenvalue exactly (an undamped mode's frequency, a
-rigid pair at w = 0) H is infinite (inf) in the entries that see that pole and finite in the
-others (an uncontrollable or unobservable mode adds nothing).
+eigenvectors of its A. Where jw makes a block of the modal form exactly singular (an undamped
+mode's frequency, rigid modes at w = 0) H is infinite (inf) in the entries that see that pole
+and finite in the others (an uncontrollable or unobservable mode adds nothing). Near a pole, or
+at one the modal form does not resolve exactly, H is large and finite, as accurate as the
+conditioning of jw I - A allows.
 """
 
 from __future__ import annotations
@@ -116,28 +118,36 @@ def _frequencies(w: object) -> np.ndarray:
 
 def _block_gain(M: np.ndarray, c: np.ndarray, b: np.ndarray, s: complex
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """c (s I - M)^-1 b of one block of the modal form, and where it is infinite (s an
-    eigenvalue of M whose pole the entry sees; the finite part is returned there as 0).
+    """c (s I - M)^-1 b of one block of the modal form that is singular at s, and where it is
+    infinite (the entries that see the pole; the finite part is returned there as 0).
 
-    With N = M - s I nilpotent (a rigid Jordan pair at s = 0), (s' I - M)^-1 = sum_j N^j /
-    (s' - s)^(j+1): an entry is infinite iff some c N^j b is non-zero, else it is 0. Otherwise
-    the block's eigenvalues are split: those at s (to rounding of M) give the poles, the
-    others the finite remainder."""
+    The eigenvalues of the block at s form a cluster: a defective one is computed only to
+    ~eps^(1/k) (k the block size; a Schur block of rigid modes holds zeros and 1e-7s), so
+    those within eps^(1/k) k max(1, |M|) of s count as s. When the whole block is that
+    cluster, (s' I - M)^-1 = sum_j N^j / (s' - s)^(j+1) with N = M - s I (nilpotent to
+    rounding): an entry is infinite iff some c N^j b is non-zero, else 0. Otherwise the
+    eigenvalues are split: those at s give the poles, the others the finite remainder. A
+    residue is a pole however small (the limit w -> 0 of the computed model grows without
+    bound); only an entry that does not couple to the block at all stays finite."""
     k = M.shape[0]
-    N = M - s * np.eye(k)
-    if not np.any(np.linalg.matrix_power(N, k)):
-        at = np.zeros((c.shape[0], b.shape[1]), dtype=bool)
+    lam = np.linalg.eigvals(M)
+    radius = np.finfo(float).eps ** (1.0 / k) * k * max(1.0, float(np.abs(M).max()))
+    near = np.abs(lam - s) <= radius
+    shape = (c.shape[0], b.shape[1])
+    if near.all():
+        N = M - s * np.eye(k)
+        at = np.zeros(shape, dtype=bool)
         power = np.eye(k)
         for _ in range(k):
             at |= (c @ power @ b) != 0
             power = power @ N
-        return np.zeros(at.shape, dtype=complex), at
+        return np.zeros(shape, dtype=complex), at
     lam, V = np.linalg.eig(M)
+    near = np.abs(lam - s) <= radius
     cv, vb = c @ V, np.linalg.solve(V, b)
-    near = np.abs(lam - s) <= 8 * np.finfo(float).eps * max(1.0, float(np.abs(M).max()))
     gain = sum((np.outer(cv[:, i], vb[i]) / (s - lam[i]) for i in np.flatnonzero(~near)),
-               np.zeros((c.shape[0], b.shape[1]), dtype=complex))
-    at = np.zeros(gain.shape, dtype=bool)
+               np.zeros(shape, dtype=complex))
+    at = np.zeros(shape, dtype=bool)
     for i in np.flatnonzero(near):
         at |= np.outer(cv[:, i], vb[i]) != 0
     return gain, at
