@@ -160,8 +160,9 @@ def independent_rows(jac: np.ndarray, groups: list[tuple[str, str, range]], sour
     for fld, what, own in groups:
         if not kept.intersection(own):
             rows = jac[list(own)]
-            why = ("its frame cannot move at this configuration (its rows of the constraint "
-                   "Jacobian are zero: it sits on the base or on a joint axis)"
+            why = ("its frames cannot move (a contact) or move relative to each other (a "
+                   "loop) at this configuration: its rows of the constraint Jacobian are "
+                   "zero"
                    if not np.abs(rows).max(initial=0.0) > RANK_TOL * max(scale, 1e-300)
                    else "every row repeats others")
             raise SceneError(source, fld, f"{what} adds no independent constraint: {why}")

@@ -311,7 +311,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(f"energy change: {np.abs(sim.energy - sim.energy[0]).max():.3e} J")
     final = ", ".join(f"{name} = {value:.6g}" for name, value
                       in zip(sim.independent_names[:n], sim.z[-1, :n], strict=True))
-    print(f"final deviation: {final}")
+    print(f"final deviation: {final or 'none (no states: the constraints hold everything)'}")
     states = {name: sim.z[:, k] for k, name in enumerate(sim.independent_names)}
     if out is not None:
         outputs = {f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)}
@@ -362,7 +362,8 @@ def _cmd_response(args: argparse.Namespace) -> int:
     model = linearize(scene)
     x0 = _initial(model, args.x0)
     u = _signals(args, model)
-    with options_named({"x0": "--x0", "method": "--method"}):
+    with options_named({"x0": "--x0", "method": "--method",
+                        "u": "--step/--impulse/--harmonic"}):
         res = response(model, t, x0=x0, u=u, method=args.method)
     n = len(model.state_names) // 2
     if n == 0:
@@ -379,8 +380,8 @@ def _cmd_response(args: argparse.Namespace) -> int:
         from .simulation import simulate
 
         sim = simulate(scene, t, dx0=x0)
-        diff = np.abs(sim.z - res.x).max()
-        scale = max(float(np.abs(res.x).max()), np.finfo(float).tiny)
+        diff = np.abs(sim.z - res.x).max(initial=0.0)
+        scale = max(float(np.abs(res.x).max(initial=0.0)), np.finfo(float).tiny)
         print(f"nonlinear simulation from the same state: max |x_nl - x_lin| = {diff:.3e} "
               f"({diff / scale:.2e} of the largest linear value)")
         curves += [(f"{name} (nonlinear)", sim.t, sim.z[:, k], "--")

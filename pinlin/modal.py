@@ -351,11 +351,10 @@ def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None =
     if symmetric_applicable(model):
         try:
             return _symmetric(model, rigid_tol)
-        except LinAlgError as exc:   # M not positive definite (a hand-built model)
-            if method == "symmetric":
+        except LinAlgError as exc:   # M not positive definite (a hand-built model), or no
+            if method == "symmetric":   # convergence: the general solver takes A as it is
                 raise ModelError(f"model '{model.name}': the symmetric (K, M) eigensolver "
-                                 f"needs a positive definite M: {exc}; use "
-                                 f"method='general'") from None
+                                 f"failed: {exc}; use method='general'") from None
             return _general(model, rigid_tol, a2)
     if method == "symmetric":
         raise PinlinError(f"model '{model.name}' has velocity terms or a non-symmetric stiffness "

@@ -394,7 +394,7 @@ def jsonable(obj: Any) -> Any:
 
     Raises:
         TypeError: a mapping key that is not a string (JSON would turn 3 into "3").
-        ValueError: an integer of more than 300 digits (read back, it would be inf).
+        ValueError: an integer of more than 300 digits (read back as a float, or inf).
     """
     if isinstance(obj, Mapping):
         for k in obj:
@@ -402,7 +402,8 @@ def jsonable(obj: Any) -> Any:
                 raise TypeError(f"key {k!r:.60} is not a string (JSON object keys are)")
         return {k: jsonable(v) for k, v in obj.items()}
     if isinstance(obj, int) and not isinstance(obj, bool) and abs(obj) >= 10**300:
-        raise ValueError("an integer of more than 300 digits would load back as inf")
+        raise ValueError("an integer of more than 300 digits would not load back as itself "
+                         "(as a rounded float, or inf)")
     if isinstance(obj, Sequence) and not isinstance(obj, str):
         return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):

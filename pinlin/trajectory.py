@@ -135,6 +135,9 @@ class TrajectoryModel:
                 continue
             arr = _stack(key, value, shape)
             object.__setattr__(self, key, arr)
+        if self.t is not None and np.any(np.diff(self.t) <= 0):
+            raise ArgumentError("t", "times must increase strictly (one per point, as "
+                                     "linearize_trajectory takes them)")
         if not isinstance(self.name, str):
             raise ArgumentError("name", f"expected a str, got {type(self.name).__name__}")
         dt = self.dt

@@ -125,10 +125,11 @@ def _read_npz_states(path: Path, raw: bytes
     for key, arr in doc.items():
         if arr.dtype.kind not in "fiu":
             raise ModelFileError(path, f"member '{key}' must hold numbers, got {arr.dtype}")
-        if arr.ndim == 0:
+        if arr.ndim == 0 and key != "t":    # a single time is the t of one point
             raise ModelFileError(path, f"member '{key}' is a single number; expected an array "
                                        f"of shape {_SHAPES[key]}, one row per point")
-    return doc["q"], doc.get("v"), doc.get("u"), doc.get("t")
+    t = doc.get("t")
+    return doc["q"], doc.get("v"), doc.get("u"), (None if t is None else t.reshape(-1))
 
 
 _SHAPES = {"q": "(N, nq)", "v": "(N, nv)", "u": "(N, nu)", "t": "(N,)"}

@@ -326,5 +326,5 @@ def test_hand_built_mass_matrix_that_the_pencil_cannot_take(M):
     assert modes.method == "general"
     np.testing.assert_allclose(np.sort_complex(modes.eigenvalues),
                                np.sort_complex(np.linalg.eigvals(model.A)), atol=1e-14)
-    with pytest.raises(pinlin.PinlinError, match="symmetric|positive definite"):
+    with pytest.raises(pinlin.PinlinError, match="symmetric"):
         pinlin.modal(model, method="symmetric")

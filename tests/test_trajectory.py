@@ -596,3 +596,14 @@ def test_cli_names_the_csv_columns_of_an_unnormalized_quaternion(tmp_path, capfd
     err = capfd.readouterr().err
     assert ("line 3, columns 'q:root_joint[3]'-'q:root_joint[6]': point 1 is not normalized: "
             "the quaternion of joint 'root_joint' has norm 2") in err, err
+
+
+def test_a_model_built_by_hand_with_times_out_of_order_is_refused():
+    """What save writes, load reads: the constructor refuses the t that load refuses (before,
+    such a model saved fine and then would not load)."""
+    traj = pinlin.linearize_trajectory(pinlin.Scene.from_robot("ur5"),
+                                       *states(pinlin.Scene.from_robot("ur5"), 2, seed=3))
+    fields = {k: getattr(traj, k) for k in ("A", "B", "C", "D", "f0", "q", "v", "u", "a",
+                                             "state_names", "input_names", "output_names")}
+    with pytest.raises(pinlin.ArgumentError, match="times must increase strictly"):
+        pinlin.TrajectoryModel(**fields, t=np.array([1.0, 0.5]))
