@@ -189,7 +189,7 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
 
     dt = check_time_step(args.dt, "--dt")
     out = Path(args.output)
-    if out.suffix != ".xml":
+    if out.suffix.lower() != ".xml":
         raise ModelFileError(out, "expected an .xml file for MJCF")
     scene = Scene.resolve(args.target)
     inputs = {Path(p).resolve() for p in (scene.source, scene.system.urdf_path) if p}

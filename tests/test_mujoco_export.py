@@ -215,7 +215,7 @@ def test_exported_mjcf_starts_at_the_operating_point(name, tmp_path, capsys):
     closed to rounding of the URDF's O(1) lengths (1e-12; MuJoCo's own 6-digit writing left
     ~5e-7 m, 5e-9 m with only the sites rewritten), its qpos is pinlin's and the file's
     bodies are those pinlin validates (the same compiled numbers)."""
-    out = tmp_path / f"{name}.xml"
+    out = tmp_path / f"{name}.{'XML' if name == 'four_bar' else 'xml'}"   # as .png, .html
     assert main(["export-mjcf", name, "-o", str(out)]) == 0
     assert "keyframe 'operating_point'" in capsys.readouterr().out
     m = mujoco.MjModel.from_xml_path(str(out))
