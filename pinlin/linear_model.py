@@ -46,9 +46,9 @@ _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 @functools.lru_cache(maxsize=512)
 def _valid_names(names: tuple) -> bool:
-    """Whether a tuple holds distinct strings without control characters (cached: models of
-    one system share their names)."""
-    return (all(type(s) is str for s in names) and len(set(names)) == len(names)
+    """Whether a tuple holds distinct non-blank strings without control characters (cached:
+    models of one system share their names)."""
+    return (all(type(s) is str and s.strip() for s in names) and len(set(names)) == len(names)
             and not _CONTROL.search("".join(names)))
 
 
@@ -86,6 +86,10 @@ def _names(key: str, value: Any, model: str) -> tuple[str, ...]:
     if odd is not None:
         raise ArgumentError(key, f"expected names as strings, got {type(odd).__name__}")
     names = tuple(str(s) for s in value)
+    if not all(s.strip() for s in names):
+        at = next(k for k, s in enumerate(names) if not s.strip())
+        raise ArgumentError(key, f"the name at position {at} is empty or blank: every signal "
+                                 f"needs a name that a file can carry and a user can select")
     odd = next((s for s in names if _CONTROL.search(s)), None)
     if odd is not None:
         raise ArgumentError(key, f"name {odd!r} has control characters (a line break, a tab): "

@@ -110,7 +110,7 @@ def models() -> dict[str, LinearModel]:
         "graph_with_E_F": Graph.load(GRAPHS / "lead_lag.toml").linearize(),
         "no_inputs_or_outputs": LinearModel(
             A=-np.eye(2), B=np.zeros((2, 0)), C=np.zeros((0, 2)), D=np.zeros((0, 0)),
-            state_names=["q:ω", ""], input_names=[], output_names=[], name="bare",
+            state_names=["q:ω", "v: ω (a space)"], input_names=[], output_names=[], name="bare",
             info={"nested": {"t": (1, 2)}, "estimate": 1e-300}),
     }
 
@@ -186,6 +186,8 @@ def test_repeated_scene_outputs_never_reach_a_file(write_scene, capfd, tmp_path)
     ({"input_names": None}, ArgumentError, "argument 'input_names': expected a sequence"),
     ({"output_names": [7]}, ArgumentError, "expected names as strings, got int"),
     ({"output_names": (["y"],)}, ArgumentError, "expected names as strings, got list"),
+    ({"state_names": [" "]}, ArgumentError, "the name at position 0 is empty or blank"),
+    ({"input_names": [""]}, ArgumentError, "the name at position 0 is empty or blank"),
     ({"A": [[1j]]}, ArgumentError, "argument 'A': expected a matrix of real numbers, got complex"),
     ({"B": [["one"]]}, ArgumentError, "argument 'B': expected a matrix of real numbers"),
     ({"C": None}, ArgumentError, "argument 'C': expected a matrix, got None"),
