@@ -477,7 +477,15 @@ def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = Non
     # Sort by |lam|, then Re, then +Im first: LAPACK returns conjugate pairs of a real matrix
     # as exact conjugates, so each pair ties on (|lam|, Re) and lands adjacent.
     order = _pairs_adjacent(np.lexsort((-wi, wr, magnitudes)), wi)
-    tol = _rigid_tol(float(magnitudes[order[-1]]), rigid_tol)
+    largest = float(magnitudes[order[-1]])
+    if rigid_tol is None and model.G is not None and model.G.shape[0] and len(order) > \
+            2 * model.G.shape[0]:
+        # Dependent coordinates: the constraint modes (Omega, mu) can be decades above the
+        # physical ones; the rigid threshold follows the physical modes, so that they are
+        # never called rigid, and their accuracy is checked below.
+        physical = ~modal_table.constraint_mask(model, es.complex_vectors(vr, wi))
+        largest = float(magnitudes[physical].max())
+    tol = _rigid_tol(largest, rigid_tol)
     lam = lam[order]
     rigid = magnitudes[order] <= tol        # a leading run: sorted by |lam|
     n_rigid = int(np.count_nonzero(rigid))

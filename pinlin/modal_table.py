@@ -45,13 +45,20 @@ def constraint(analysis: ModalAnalysis) -> np.ndarray:
     """:attr:`ModalAnalysis.constraint` of ``analysis`` (documented there, in
     :mod:`pinlin.modal`)."""
     G = analysis.model.G
-    out = np.zeros(len(analysis.eigenvalues), dtype=bool)
     if G is None or G.shape[0] == 0:
-        return out
-    rows = [k for k, s in enumerate(analysis.model.state_names) if s.startswith("q:")]
-    vq = analysis.right_vectors[rows]
+        return np.zeros(len(analysis.eigenvalues), dtype=bool)
+    return constraint_mask(analysis.model, analysis.right_vectors)
+
+
+def constraint_mask(model, vectors: np.ndarray) -> np.ndarray:
+    """Which columns of the right eigenvectors ``vectors`` (of a model with G, m rows) are the
+    2m constraint modes: those whose position part lies most in the range of G^T."""
+    G = model.G
+    rows = [k for k, s in enumerate(model.state_names) if s.startswith("q:")]
+    vq = vectors[rows]
     ratio = np.linalg.norm(G @ vq, axis=0) / (
         np.linalg.norm(G, 2) * np.maximum(np.linalg.norm(vq, axis=0), np.finfo(float).tiny))
+    out = np.zeros(vectors.shape[1], dtype=bool)
     out[np.argsort(-ratio, kind="stable")[:2 * G.shape[0]]] = True
     return out
 

@@ -9,6 +9,7 @@ in numpy, and Pinocchio's own constrained forward dynamics differenced on the me
 from __future__ import annotations
 
 import math
+import warnings
 
 import minimal_models as mm
 import numpy as np
@@ -623,3 +624,25 @@ def test_steady_rotation_coriolis(tmp_path, rate):
     C = model.C_damp
     assert C[0, 1] == pytest.approx(-C[1, 0]) and abs(C[0, 1]) == pytest.approx(
         2 * abs(rate) * m * L * L, rel=1e-12)
+
+
+@pytest.mark.parametrize("options", [{"mu": 1e15}, {"alpha": 1.0, "omega": 1e8}])
+def test_penalty_spectra_float64_cannot_hold_are_warned_not_called_rigid(options):
+    """Omega and mu put the constraint modes at ~Omega and ~2 mu Omega: 1e16 times the
+    four-bar's 4.8066 rad/s (the independent model's) is beyond float64, and the physical pair
+    comes out wrong (3.45 +- 3.44j, 5.42j). modal must warn, and must not call the physical
+    modes rigid by a threshold set by the constraint modes (it did: no warning at all)."""
+    model = pinlin.linearize("four_bar", formulation="penalty", **options)
+    with pytest.warns(pinlin.AccuracyWarning, match="rounding in A alone may move it"):
+        modes = pinlin.modal(model)
+    physical = [i for i in range(len(modes.eigenvalues)) if not modes.constraint[i]]
+    assert physical and not any(modes.rigid[i] for i in physical)
+    # At the defaults (alpha = 1e7, Omega = 10, mu = 1) the same analysis is quiet and equal
+    # to the independent model's to the penalty error c / alpha (2.8e-8 for the four-bar,
+    # validation/reports/penalty_conditioning.md; 1e-5 leaves a wide margin).
+    reference = np.abs(np.linalg.eigvals(pinlin.linearize("four_bar").A)).max()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", pinlin.AccuracyWarning)
+        quiet = pinlin.modal(pinlin.linearize("four_bar", formulation="penalty"))
+    kept = [i for i in range(len(quiet.eigenvalues)) if not quiet.constraint[i]]
+    np.testing.assert_allclose(np.abs(quiet.eigenvalues[kept]), reference, rtol=1e-5)
