@@ -297,7 +297,8 @@ def propagated_noise(X: np.ndarray, sigma: np.ndarray, Y: np.ndarray | None = No
     return x if Y is None else x * float(np.sqrt((Y * Y).sum(axis=0).max(initial=0.0)))
 
 
-def error_estimate(A: np.ndarray, A_alt: np.ndarray, noise: float) -> dict[str, float]:
+def error_estimate(A: np.ndarray, A_alt: np.ndarray, noise: float,
+                   scale: float | None = None) -> dict[str, float]:
     """Relative error estimate of a numerically derived A, max |error| / max |A|:
     :data:`TRUNCATION_SAFETY` times the truncation error, from the companion formula pushed
     through the same formulation (``A_alt``), plus :data:`NOISE_SIGMAS` times ``noise``, the
@@ -306,9 +307,14 @@ def error_estimate(A: np.ndarray, A_alt: np.ndarray, noise: float) -> dict[str, 
 
     Returns:
         ``{"error_estimate": total, "error_estimate_rounding": the rounding part}`` (the keys
-        of ``model.info``).
+        of ``model.info``); relative to ``scale`` [units of A] when given (the size of the
+        numerically derived part of A: a penalty model's Omega^2 and 2 mu Omega entries would
+        dilute max |A|), else to max |A|.
     """
-    scale = max(float(np.abs(A).max(initial=0.0)), np.finfo(float).tiny)
+    largest = float(np.abs(A).max(initial=0.0))
+    # A given scale is floored at A's own rounding (a negligible derived part, extreme values).
+    scale = largest if scale is None else max(scale, np.finfo(float).eps * largest)
+    scale = max(scale, np.finfo(float).tiny)
     truncation = TRUNCATION_SAFETY * float(np.abs(A_alt - A).max(initial=0.0)) / scale
     rounding = NOISE_SIGMAS * noise / scale + FORMULATION_ROUNDING
     return {"error_estimate": truncation + rounding, "error_estimate_rounding": rounding}

@@ -114,3 +114,22 @@ def test_numerical_backends_agree_with_analytic(backend):
     # Within the error bound reported with the model (validation/reports/error_estimate.md).
     true = np.abs(numeric.A - analytic.A).max() / np.abs(analytic.A).max()
     assert true <= numeric.info["error_estimate"] < 1e-8
+
+
+@pytest.mark.parametrize("formulation", ["independent", "penalty", "canonical"])
+def test_error_estimate_of_dependent_models_is_not_diluted_by_the_penalty(formulation):
+    """fd3 with a coarse step (0.1) moves the four-bar's physical pair by ~1e-3 (relative,
+    against the analytic model of the same formulation). The estimate must say so in every
+    formulation: before, the penalty and canonical ones divided by max |A| ~ Omega^2 or
+    alpha Omega^2 (exact penalty terms) and reported 2e-11 without a warning."""
+    with pytest.warns(pinlin.AccuracyWarning, match="estimated relative error"):
+        coarse = pinlin.linearize("four_bar", formulation=formulation, derivatives="fd3",
+                                  step=0.1)
+    exact = pinlin.linearize("four_bar", formulation=formulation)
+
+    def physical(model):
+        lam = np.linalg.eigvals(model.A)
+        return lam[np.argmin(np.abs(np.abs(lam) - 4.8066))]   # the independent model's pair
+
+    error = abs(physical(coarse) - physical(exact)) / abs(physical(exact))
+    assert 1e-4 < error <= coarse.info["error_estimate"]

@@ -17,7 +17,14 @@ from ..equilibrium import ConstrainedPoint
 from ..exceptions import ArgumentError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
-from .constrained import _alt, _info, _numeric_info, _penalty_setup, penalty_first_order
+from .constrained import (
+    _alt,
+    _info,
+    _numeric_info,
+    _penalty_setup,
+    penalty_first_order,
+    physical_scale,
+)
 from .independent import output_matrices
 
 
@@ -119,13 +126,17 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     A, B, Mp_inv, A_pen = canonical_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega)
     gap = (_check_canonical_spectrum(A, A_pen, G, alpha, system.scene.name) if G.size
            else 0.0)
-    A_alt, rounding = None, 0.0
     alt = _alt(terms)
+    numeric = {}
     if alt is not None:
-        A_alt = canonical_first_order(terms.M, alt[1], alt[0], G, S, alpha, mu, omega)[0]
-        # dK enters A as -dK (upper right), dC as -dC M_p^-1 (upper left).
-        rounding = (float(terms.rounding[0].max(initial=0.0))
-                    + propagated_noise(np.eye(n), terms.rounding[1], Mp_inv))
+        # The estimate is taken on the penalty model of the same terms (the same spectrum):
+        # the canonical A holds K_p ~ alpha Omega^2 exactly, which would dilute it.
+        A_pen_alt = canonical_first_order(terms.M, alt[1], alt[0], G, S, alpha, mu, omega)[3]
+        rounding = max(propagated_noise(Mp_inv, sigma) for sigma in terms.rounding)
+        numeric = _numeric_info(terms, A_pen, A_pen_alt, rounding,
+                                physical_scale(Mp_inv, terms.K, C))
+    elif terms.steps is not None:
+        numeric = {"step": dict(terms.steps)}
     Cfull, D, out_names, y0 = output_matrices(system, op)
     # Outputs read dq and v; in (p, q): dq = q, v = M_p^-1 p.
     Cout = np.hstack([Cfull[:, n:] @ Mp_inv, Cfull[:, :n]])
@@ -134,7 +145,7 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     if system.outputs is None:
         Cout, out_names, y0 = np.eye(2 * n), states, np.zeros(2 * n)
     info = _info(system, op, cp, "canonical", terms.backend, alpha=alpha, mu=mu,
-                 omega=omega, **_numeric_info(terms, A, A_alt, rounding))
+                 omega=omega, **numeric)
     info["condition"]["canonical_vs_penalty_spectrum"] = gap
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
                        state_names=states, input_names=system.input_names,

@@ -208,15 +208,23 @@ def _alt(terms) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _numeric_info(terms, A: np.ndarray, A_alt: np.ndarray | None,
-                  rounding: float = 0.0) -> dict:
+                  rounding: float = 0.0, scale: float | None = None) -> dict:
     """Steps and error estimate; ``rounding`` is the rounding bound of K and C pushed into A
-    [units of A]."""
+    [units of A]; ``scale``: the size of the numerically derived part of A (default max |A|)."""
     out: dict = {}
     if terms.steps is not None:
         out["step"] = dict(terms.steps)
     if A_alt is not None:
-        out.update(error_estimate(A, A_alt, rounding))
+        out.update(error_estimate(A, A_alt, rounding, scale))
     return out
+
+
+def physical_scale(Mp_inv: np.ndarray, K: np.ndarray, C: np.ndarray) -> float:
+    """max |M_p^-1 [K, C]|: the size of what the finite differences give in a penalty model's
+    A (its rows -M_p^-1 [K_p, C_p] also hold the penalty terms ~Omega^2 and ~2 mu Omega,
+    exact, which would make an error relative to max |A| look small)."""
+    return max(float(np.abs(Mp_inv @ K).max(initial=0.0)),
+               float(np.abs(Mp_inv @ C).max(initial=0.0)))
 
 
 def _input_matrix(system, terms) -> np.ndarray:
@@ -398,9 +406,11 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
         Mp_inv = penalty_first_order(terms.M, C, terms.K, cp.jacobian, np.eye(n), alpha, mu,
                                      omega)[1][n:]
         rounding = max(propagated_noise(Mp_inv, sigma) for sigma in terms.rounding)
+        scale = physical_scale(Mp_inv, terms.K, C)
     Cout, D, out_names, y0 = output_matrices(system, op)
     info = _info(system, op, cp, "penalty", terms.backend, alpha=alpha, mu=mu,
-                 omega=omega, **_numeric_info(terms, A, A_alt, rounding))
+                 omega=omega, **_numeric_info(terms, A, A_alt, rounding,
+                                              scale if alt is not None else None))
     return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names, M=Mp,
                        C_damp=Cp, K=Kp, Bu=S, G=cp.jacobian, operating_point=op.with_outputs(y0),
