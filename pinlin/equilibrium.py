@@ -129,6 +129,11 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
             part = partition(system, q_guess, check=False)
         q0, part = _passive_equilibrium(system, q0, part, u0)
         jac = None
+        moved = float(np.abs(pin.difference(system.model, q_guess, q0)).max(initial=0.0))
+        notes.append(f"solve = \"positions\": q0 is the equilibrium Newton found from the "
+                     f"given q (the starting guess), {moved:.3g} rad or m away from it at "
+                     f"most; a linearization at q itself needs solve = \"inputs\" or a "
+                     f"given state (solve = \"none\")")
     if jac is None:
         jac = cons.jacobian(q0)
     part = partition(system, q0, jac)

@@ -248,7 +248,9 @@ def linearize(scene: Scene | System | str | Path, *,
             measured noise of the dynamics; fd3 at ~2x, fd5 at ~1.5x the cost). An estimate
             above 1e-6 gives an :class:`~pinlin.AccuracyWarning`.
         q: Full configuration (size nq) replacing the scene's operating point (the scene's
-            contacts are anchored where it puts their frames).
+            contacts are anchored where it puts their frames). Loops are closed from it; with
+            the scene's ``solve = "positions"`` it is the starting guess of the equilibrium
+            search (a note says how far q0 moved).
         v, u: Velocity (nv) [rad/s or m/s] and inputs (nu) [N*m or N]: the state is taken as
             given (as with the scene's ``solve = "none"``; the one not passed is the scene's,
             else zero) and the model is affine, x' = f0 + A x + B u with f0 = [v0; a0]

@@ -50,3 +50,14 @@ def test_pushed_or_moving_state_is_not(name: str) -> None:
     v = 0.1 * R[:, 0]
     gop = pinlin.linearize(scene, q=op.q, v=v, u=op.u).operating_point
     assert not gop.equilibrium
+
+
+def test_positions_solve_says_q_was_a_starting_guess():
+    """With solve = "positions" a given q is where Newton starts; the equilibrium it finds can
+    be another one (here 5.7 rad away): the operating point says so instead of nothing."""
+    scene = pinlin.Scene.resolve("rotating_double_pendulum")
+    q = np.array([2.5, 0.1])
+    op = pinlin.linearize(scene, q=q).operating_point
+    note = next(n for n in op.notes if n.startswith('solve = "positions"'))
+    moved = float(np.abs(op.q - q).max())
+    assert moved > 1.0 and f"{moved:.3g} rad or m away" in note
