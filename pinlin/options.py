@@ -17,6 +17,7 @@ systems), :class:`Penalty` (9.1.2) and :class:`Canonical` (9.1.3). Derivatives (
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -131,8 +132,11 @@ class FiniteDifferences:
     def __post_init__(self) -> None:
         from .derivatives import resolve_steps
 
-        if self.order not in (3, 5) or isinstance(self.order, bool):
-            raise ArgumentError("order", f"expected 3 or 5 points, got {self.order!r}")
+        order = self.order          # 3 or np.int64(3); 3.0 and True are refused
+        if isinstance(order, bool) or not isinstance(order, numbers.Integral) \
+                or order not in (3, 5):
+            raise ArgumentError("order", f"expected 3 or 5 points, got {order!r}")
+        object.__setattr__(self, "order", int(order))
         if not isinstance(self.estimate_error, bool):
             raise ArgumentError("estimate_error", f"expected True or False, got "
                                                   f"{self.estimate_error!r}")

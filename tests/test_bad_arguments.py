@@ -177,6 +177,8 @@ def test_option_objects_equal_the_string_shortcuts():
     (lambda: pinlin.Canonical(omega=float("inf")), "omega"),
     (lambda: pinlin.Independent(basis="qr"), "basis"),
     (lambda: pinlin.FiniteDifferences(order=4), "order"),
+    (lambda: pinlin.FiniteDifferences(order=3.0), "order"),     # a KeyError 'fd3.0' before
+    (lambda: pinlin.FiniteDifferences(order=True), "order"),
     (lambda: pinlin.FiniteDifferences(step=6.3), "step"),
     (lambda: pinlin.FiniteDifferences(estimate_error="no"), "estimate_error"),
     (lambda: pinlin.linearize(FOUR_BAR, formulation=pinlin.Penalty(), mu=0.3), "mu"),
