@@ -107,9 +107,10 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
                       allow_non_equilibrium=True if args.allow_non_equilibrium else None,
                       allow_ill_conditioned=args.allow_ill_conditioned,
                       basis=args.basis, alpha=args.alpha, mu=args.mu, omega=args.omega)
+    modes = modal(model, method=args.method)    # refuses before anything is printed
     print_operating_point(model, scene.system)
     print()
-    print(modal(model, method=args.method))
+    print(modes)
     if args.matrices:
         names = {"A": (model.state_names, model.state_names),
                  "B": (model.state_names, model.input_names),

@@ -340,3 +340,14 @@ def test_coordinate_without_inertia_is_refused_even_with_the_opt_in(capfd):
     one_error_line(err)
     assert "coordinate 'bravo_finger1_joint' carries no inertia (row 6 of M is zero)" in err
     assert "nor does 1 other coordinate (bravo_finger2_joint)" in err
+
+
+@pytest.mark.parametrize("argv", [["ur5_arm", "--method", "symmetric"],
+                                  ["four_bar", "--formulation", "penalty", "--method",
+                                   "symmetric"]])
+def test_symmetric_solver_refused_before_anything_is_printed(argv, capfd):
+    """The damped ur5 and the penalty four-bar have velocity terms: the symmetric solver does
+    not apply, and the refusal comes alone (before, after 13-16 lines of results)."""
+    code, out, err = run(capfd, "linearize", *argv)
+    assert code == 2 and out == ""
+    assert "symmetric (K, M) eigensolver does not apply" in one_error_line(err)
