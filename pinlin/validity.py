@@ -78,7 +78,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .arrays import read_only
+from .arrays import non_numbers, read_only
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 from .linearization import _system, linearize
@@ -129,9 +129,30 @@ def _positive(name: str, value: object, unit: str, upper: float = math.inf) -> f
     return float(value)
 
 
+def _check_integration(rtol: object, atol: object, tolerance: float, smallest: float) -> None:
+    """Refuse solver tolerances whose noise (:func:`_floor`: NOISE_RTOL rtol + NOISE_ATOL atol
+    / a) reaches the tolerance at the smallest amplitude: every error measured would be
+    noise, and the radius a verdict on the solver rather than the model."""
+    rtol = _positive("rtol", rtol, "(relative, of the nonlinear simulation)")
+    atol = _positive("atol", atol, "(absolute, of the nonlinear simulation)")
+    if NOISE_RTOL * rtol >= tolerance:
+        raise ArgumentError("rtol", f"{rtol:g} lets integration noise (~{NOISE_RTOL:g} rtol) "
+                                    f"reach the tolerance {tolerance:g}; use rtol <= "
+                                    f"{tolerance / NOISE_RTOL / 10:.1g}")
+    if NOISE_ATOL * atol / smallest >= tolerance:
+        raise ArgumentError("atol", f"{atol:g} lets integration noise (~{NOISE_ATOL:g} atol / "
+                                    f"amplitude) reach the tolerance {tolerance:g} at the "
+                                    f"smallest amplitude {smallest:g}; use atol <= "
+                                    f"{tolerance * smallest / NOISE_ATOL / 10:.1g}")
+
+
 def _amplitudes(amplitudes: object) -> tuple[np.ndarray, bool]:
     if amplitudes is None:
         return np.array(DEFAULT_AMPLITUDES), True
+    bad = "text" if isinstance(amplitudes, str) else non_numbers(amplitudes)
+    if bad:
+        raise ArgumentError("amplitudes", f"expected amplitudes [rad or m] as numbers, got "
+                                          f"{bad}")
     try:
         arr = np.array(amplitudes, dtype=float).reshape(-1)
     except (TypeError, ValueError):
@@ -418,6 +439,7 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
         raise ArgumentError("periods", f"expected at most {MAX_CYCLES:g} periods (each takes "
                                        f"the integrator ~10 steps), got {periods:g}")
     tolerance = _positive("tolerance", tolerance, "(relative error)", upper=1.0)
+    _check_integration(rtol, atol, tolerance, float(amps.min()))
     time_constants = _positive("time_constants", time_constants, "of time constants")
     horizon = None if horizon is None else _positive("horizon", horizon, "[s]")
     model = linearize(system, q=q, v=v)

@@ -252,6 +252,12 @@ def test_result_is_read_only(pendulum):
      r"amplitudes.*expected at least one amplitude \[rad or m\], got an empty sequence"),
     ({"amplitudes": [0.1, -0.1]}, pinlin.ArgumentError, r"amplitudes.*> 0"),
     ({"amplitudes": [0.1, math.nan]}, pinlin.ArgumentError, r"amplitudes.*finite"),
+    ({"amplitudes": "0.1"}, pinlin.ArgumentError, r"amplitudes.*got text"),
+    ({"amplitudes": [True]}, pinlin.ArgumentError, r"amplitudes.*got booleans"),
+    # solver tolerances whose noise (1e3 rtol + 1e2 atol / a) reaches the 1 % tolerance: the
+    # "radius" would be the solver's (atol = 1e10 gave 0.001 rad for the pendulum's 0.159)
+    ({"atol": 1e10}, pinlin.ArgumentError, r"argument 'atol'.*use atol <= 1e-08"),
+    ({"rtol": 1e-3}, pinlin.ArgumentError, r"argument 'rtol'.*use rtol <= 1e-06"),
     ({"periods": 0}, pinlin.ArgumentError, r"periods.*> 0"),
     ({"time_constants": -1.0}, pinlin.ArgumentError, r"time_constants.*> 0"),
     ({"horizon": math.inf}, pinlin.ArgumentError, r"horizon.*finite number > 0 \[s\]"),
