@@ -45,6 +45,18 @@ def non_numbers(value: object) -> str | None:
         return None  # the usual case, without a second conversion
     if isinstance(value, np.ma.MaskedArray) and np.ma.getmaskarray(value).any():
         return "masked entries"
+    if isinstance(value, list | tuple):     # numpy reads [True, 0] as integers
+        stack = list(value)
+        while stack:
+            item = stack.pop()
+            if isinstance(item, list | tuple):
+                stack.extend(item)
+            elif isinstance(item, bool | np.bool_):
+                return "booleans (True/False)"
+            elif isinstance(item, str | bytes):
+                return "text"
+            elif isinstance(item, complex | np.complexfloating):
+                return "complex entries"
     try:
         arr = np.asarray(value)
     except (TypeError, ValueError, OverflowError):

@@ -21,7 +21,7 @@ BAD_CALLS = {  # name: (target, keyword arguments, argument named, words in the 
     "scene_int": (42, {}, "scene", "got int"),
     "scene_list": ([PENDULUM], {}, "scene", "got list"),
     "q_strings": (PENDULUM, {"q": ["a"]}, "q", "got text"),
-    "q_nested_junk": (PENDULUM, {"q": [[1.0], "x"]}, "q", "expected 1 numbers"),
+    "q_nested_junk": (PENDULUM, {"q": [[1.0], "x"]}, "q", "got text"),
     "q_object": (PENDULUM, {"q": object()}, "q", "expected 1 numbers"),
     "q_huge_int": (PENDULUM, {"q": [10**400]}, "q", "expected 1 numbers"),
     "allow_string": (PENDULUM, {"allow_non_equilibrium": "no"}, "allow_non_equilibrium",

@@ -22,6 +22,8 @@ def ur5():
 BAD = {
     "text": (["1e3"] * 6, "text"),
     "bools": ([True] * 6, "booleans"),
+    "bool_among_numbers": ([True, 0, 0, 0, 0, 0], "booleans"),   # numpy reads it as int
+    "text_among_numbers": ([0.0, 0.0, "1", 0.0, 0.0, 0.0], "text"),
     "complex": ([1j] * 6, "complex entries"),
     "object_text": (np.array([1, 2, 3, 4, 5, "x"], dtype=object), "text"),
 }
