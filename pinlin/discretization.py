@@ -41,7 +41,7 @@ def check_step(dt: object, method: object) -> float:
     Raises:
         ArgumentError: ``dt`` not a positive finite number [s], or an unknown method.
     """
-    if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
+    if isinstance(dt, bool) or not isinstance(dt, int | float | np.integer | np.floating) \
             or not (math.isfinite(dt) and dt > 0):
         raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r}")
     if not isinstance(method, str) or method not in METHODS:

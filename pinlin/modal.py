@@ -270,8 +270,16 @@ class ModalAnalysis:
         ``index``, largest first.
 
         Raises:
-            ArgumentError: ``index`` is not an eigenvalue index 0 <= index < n.
+            ArgumentError: ``index`` is not an eigenvalue index 0 <= index < n; ``threshold``
+                not in (0, 1] (shapes are scaled to a largest entry of 1); ``limit`` not an
+                integer >= 1.
         """
+        if isinstance(threshold, bool) or not isinstance(threshold, int | float | np.floating) \
+                or not 0.0 < threshold <= 1.0:
+            raise ArgumentError("threshold", f"expected a number in (0, 1] (the shapes' "
+                                             f"largest entry is 1), got {threshold!r}")
+        if isinstance(limit, bool) or not isinstance(limit, int | np.integer) or limit < 1:
+            raise ArgumentError("limit", f"expected an integer >= 1, got {limit!r}")
         return modal_table.dominant(self, self._index(index), threshold, limit)
 
     def _index(self, index: object) -> int:

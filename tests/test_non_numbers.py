@@ -98,6 +98,10 @@ def test_modal_indices_and_coordinates():
             with pytest.raises(pinlin.ArgumentError, match="argument 'index': expected an "
                                                            "eigenvalue index from 0 to 1"):
                 method(bad)
+    for kwargs, argument in (({"limit": -1}, "limit"), ({"limit": 1.5}, "limit"),
+                             ({"threshold": 2.0}, "threshold"), ({"threshold": 0}, "threshold")):
+        with pytest.raises(pinlin.ArgumentError, match=f"argument '{argument}'"):
+            modes.dominant(0, **kwargs)      # before: [] without a word
     for method in (modes.to_modal, modes.from_modal):
         with pytest.raises(pinlin.ArgumentError, match="has NaN or inf"):
             method(np.array([np.nan, 0.0]))

@@ -610,3 +610,13 @@ def test_report_response_plot_stops_before_noise_grows(tmp_path):
         warnings.simplefilter("error", RuntimeWarning)
         path = pinlin.write_html_report("g1_standing", tmp_path / "g1.html", max_modes=2)
     assert "data:image/png;base64," in path.read_text()
+
+
+def test_discretize_takes_any_real_sample_time_and_refuses_the_rest():
+    """np.int64(1) is a sample time like 1.0 (it was refused); zero, booleans and text are
+    not."""
+    model = _model("pendulum")
+    np.testing.assert_array_equal(model.discretize(np.int64(1)).A, model.discretize(1.0).A)
+    for bad in (0.0, -1.0, True, "1", float("nan")):
+        with pytest.raises(pinlin.ArgumentError, match="argument 'dt'"):
+            model.discretize(bad)
