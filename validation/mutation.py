@@ -181,6 +181,14 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     "symmetric_mass_unchecked": (
         "pinlin/modal.py", "    for mat in (model.K, model.M):", "    for mat in (model.K,):",
         "modal takes the symmetric pencil path with a non-symmetric M"),
+    "rigid_threshold_from_constraint_modes": (
+        "pinlin/modal.py", "        largest = float(magnitudes[physical].max())\n", "",
+        "modal's rigid threshold follows a penalty model's constraint modes again"),
+    "fd_estimate_relative_to_all_of_A": (
+        "pinlin/formulations/constrained.py",
+        "        out.update(error_estimate(A, A_alt, rounding, scale))",
+        "        out.update(error_estimate(A, A_alt, rounding))",
+        "a penalty model's finite-difference error estimate divided by max |A|"),
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),
