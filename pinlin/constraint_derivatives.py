@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from .loop_kernels import frame_jacobian, frame_jacobian_variation
+
 if TYPE_CHECKING:
     from .constraints import ConstraintSet
 
@@ -97,9 +99,9 @@ def jacobian_variation(cons: ConstraintSet, q: np.ndarray, w: np.ndarray) -> np.
     pin.computeJointJacobiansTimeVariation(kin, kd, sysm.kin_q(q), sysm.kin_v(w, spin=False))
     cols = sysm.kin_columns
     for _, f1, f2, row, _ in cons._closures:
-        out[row:row + 3] = _dj(kin, kd, f1)[:3, cols]
+        out[row:row + 3] = frame_jacobian_variation(kin, kd, f1)[:3, cols]
         if f2 is not None:
-            out[row:row + 3] -= _dj(kin, kd, f2)[:3, cols]
+            out[row:row + 3] -= frame_jacobian_variation(kin, kd, f2)[:3, cols]
     return out
 
 
@@ -132,7 +134,7 @@ def _point_hessian(cons: ConstraintSet, q: np.ndarray, lam: np.ndarray) -> np.nd
     kin, kd = sysm.kin_model, sysm.kin_data
     pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
     frames, lam_rows, skew_at, skew_sign = cons._hessian_plan
-    J = np.concatenate([_j(kin, kd, fid) for fid in frames])
+    J = np.concatenate([frame_jacobian(kin, kd, fid) for fid in frames])
     if sysm.rotation is not None:
         J = J[:, sysm.kin_columns]
     n = J.shape[0] // 2  # 3 rows per frame
@@ -188,17 +190,17 @@ def hessian_by_time_variation(cons: ConstraintSet, q: np.ndarray, lam: np.ndarra
     angular = {}  # weld rows: (w1 - w2, w2), world angular-velocity Jacobians (3 x nv)
     for kind, f1, f2, row, _ in cons._closures:
         if kind == "weld":
-            w1 = _j(kin, kd, f1)[3:, cols]
-            w2 = zero if f2 is None else _j(kin, kd, f2)[3:, cols]
+            w1 = frame_jacobian(kin, kd, f1)[3:, cols]
+            w2 = zero if f2 is None else frame_jacobian(kin, kd, f2)[3:, cols]
             angular[row] = (w1 - w2, w2)
     e = np.zeros(nv)
     for j in cons._support:
         e[j] = 1.0
         pin.computeJointJacobiansTimeVariation(kin, kd, qk, sysm.kin_v(e, spin=False))
         for kind, f1, f2, row, _ in cons._closures:
-            dJ = _dj(kin, kd, f1)[:, cols]
+            dJ = frame_jacobian_variation(kin, kd, f1)[:, cols]
             if f2 is not None:
-                dJ = dJ - _dj(kin, kd, f2)[:, cols]
+                dJ = dJ - frame_jacobian_variation(kin, kd, f2)[:, cols]
             out[j] += lam[row:row + 3] @ dJ[:3]
             if kind == "weld":
                 lr = lam[row + 3:row + 6]
@@ -211,13 +213,3 @@ def hessian_by_time_variation(cons: ConstraintSet, q: np.ndarray, lam: np.ndarra
         sym[block, block] = out.T[block, block]
     return sym
 
-
-def _j(model: pin.Model, data: pin.Data, frame: int) -> np.ndarray:
-    """The LOCAL_WORLD_ALIGNED frame Jacobian, (6, nv) also where nv = 1 (eigenpy returns a
-    6x1 matrix as a vector)."""
-    return pin.getFrameJacobian(model, data, frame, LWA).reshape(6, -1)
-
-
-def _dj(model: pin.Model, data: pin.Data, frame: int) -> np.ndarray:
-    """Its time variation dJ/dt, (6, nv) as :func:`_j`."""
-    return pin.getFrameJacobianTimeVariation(model, data, frame, LWA).reshape(6, -1)

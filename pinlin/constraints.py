@@ -47,8 +47,8 @@ import pinocchio as pin
 
 from . import constraint_derivatives
 from .exceptions import ModelError, SceneError, UrdfError
+from .loop_kernels import frame_jacobian
 
-LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 #: Prefix of a contact's constraint rows: ``contact:<name>.x`` ... ``.rz``.
 CONTACT_PREFIX = "contact:"
 _AXES = {"point": ("x", "y", "z"), "weld": ("x", "y", "z", "rx", "ry", "rz")}
@@ -290,14 +290,14 @@ class ConstraintSet:
             phi = self._closure_residual(kd)
             cols = sysm.kin_columns
             for kind, f1, f2, row, anchor in self._closures:
-                J1 = pin.getFrameJacobian(kin, kd, f1, LWA).reshape(6, -1)[:, cols]
+                J1 = frame_jacobian(kin, kd, f1)[:, cols]
                 if f2 is None:
                     out[row:row + 3] = J1[:3]
                     if kind == "weld":
                         E = kd.oMf[f1].rotation @ anchor.rotation.T
                         out[row + 3:row + 6] = pin.Jlog3(E) @ E.T @ J1[3:]
                     continue
-                J2 = pin.getFrameJacobian(kin, kd, f2, LWA).reshape(6, -1)[:, cols]
+                J2 = frame_jacobian(kin, kd, f2)[:, cols]
                 out[row:row + 3] = J1[:3] - J2[:3]
                 if kind == "weld":
                     E = kd.oMf[f1].rotation @ kd.oMf[f2].rotation.T
@@ -327,8 +327,7 @@ class ConstraintSet:
         frames, P, anchor = plan
         pin.computeJointJacobians(kin, kd, sysm.kin_q(q))
         position = np.array([pin.updateFramePlacement(kin, kd, f).translation for f in frames])
-        J = np.concatenate([pin.getFrameJacobian(kin, kd, f, LWA).reshape(6, -1)[:3]
-                            for f in frames])
+        J = np.concatenate([frame_jacobian(kin, kd, f)[:3] for f in frames])
         if sysm.rotation is not None:
             J = J[:, sysm.kin_columns]
         phi = P @ position.reshape(-1)

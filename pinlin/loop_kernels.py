@@ -110,13 +110,25 @@ def _build(cons) -> ClosurePlan | None:
     return ClosurePlan(frames, P, mimic, signs, rows)
 
 
+def frame_jacobian(model: pin.Model, data: pin.Data, frame: int) -> np.ndarray:
+    """The LOCAL_WORLD_ALIGNED frame Jacobian (6, nv), also where nv = 1 (eigenpy returns a
+    6x1 matrix as a vector); the joint Jacobians must be computed."""
+    return pin.getFrameJacobian(model, data, frame, LWA).reshape(6, -1)
+
+
+def frame_jacobian_variation(model: pin.Model, data: pin.Data, frame: int) -> np.ndarray:
+    """Its time variation dJ/dt (6, nv), as :func:`frame_jacobian`; the joint Jacobians' time
+    variation must be computed."""
+    return pin.getFrameJacobianTimeVariation(model, data, frame, LWA).reshape(6, -1)
+
+
 def frame_jacobians(model: pin.Model, data: pin.Data, q: np.ndarray, frames: tuple[int, ...],
                     out: np.ndarray) -> None:
     """One ``computeJointJacobians(q)`` and a LOCAL_WORLD_ALIGNED ``getFrameJacobian`` per
     frame, into ``out`` (F, 6, nv)."""
     pin.computeJointJacobians(model, data, q)
     for i, fid in enumerate(frames):
-        out[i] = pin.getFrameJacobian(model, data, fid, LWA).reshape(6, -1)
+        out[i] = frame_jacobian(model, data, fid)
 
 
 def _columns(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -64,7 +64,7 @@ class _Closures:
         pin.computeJointJacobians(model, data, q)
         pos = self.positions
         for i, fid in enumerate(self.plan.frames):
-            J[i] = pin.getFrameJacobian(model, data, fid, lk.LWA).reshape(6, -1)
+            J[i] = lk.frame_jacobian(model, data, fid)
             pos[3 * i:3 * i + 3] = pin.updateFramePlacement(model, data, fid).translation
         phi = np.dot(self.plan.P, pos)
         phi -= self.anchor

@@ -23,6 +23,7 @@ from ..chart import kinematic_block
 from ..conditioning import trace_condition, warn_if_ill_conditioned
 from ..derivatives import error_estimate, propagated_noise, second_order_terms
 from ..linear_model import LinearModel
+from ..loop_kernels import frame_jacobian
 from ..operating_point import OperatingPoint
 from ..system import System
 
@@ -51,8 +52,7 @@ def output_matrices(system: System, op: OperatingPoint) -> tuple[np.ndarray, np.
         pin.computeJointJacobians(model, data, system.kin_q(op.q))
         pin.updateFramePlacements(model, data)
         for row, fid in spec.frames:
-            J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-            J = np.reshape(J, (6, model.nv))[:, system.kin_columns]  # eigenpy flattens 6x1
+            J = frame_jacobian(model, data, fid)[:, system.kin_columns]
             C[row:row + 3, :nv] = J[:3]
             y0[row:row + 3] = data.oMf[fid].translation
     return C, np.zeros((p, nu)), spec.names, y0

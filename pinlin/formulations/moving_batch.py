@@ -185,7 +185,7 @@ def models(system, plan: lk.ClosurePlan, st: Stack, rows: np.ndarray, z: np.ndar
         K[k] = dq
         C[k] = dv
         for i, fid in enumerate(frames):
-            Jf[k, i] = pin.getFrameJacobian(model, data, fid, lk.LWA).reshape(6, -1)
+            Jf[k, i] = lk.frame_jacobian(model, data, fid)
             pf[k, i] = pin.updateFramePlacement(model, data, fid).translation
     diagonal = np.arange(nv)
     K[:, diagonal, diagonal] += system.stiffness
