@@ -353,21 +353,6 @@ def _read_names(path: Path, key: str, value: Any) -> list[str]:
     return value
 
 
-def _not_numbers(value: Any) -> str | None:
-    """What in nested JSON lists is not a number ("text", "booleans (True/False)"), which
-    np.array(..., dtype=float) would read as numbers (a boolean among floats becomes 1.0)."""
-    stack = [value]
-    while stack:
-        item = stack.pop()
-        if isinstance(item, list):
-            stack.extend(item)
-        elif isinstance(item, bool):
-            return "booleans (True/False)"
-        elif isinstance(item, str):
-            return "text"
-    return None
-
-
 def _read_matrix(path: Path, key: str, value: Any) -> np.ndarray:
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "fiu":
@@ -377,7 +362,7 @@ def _read_matrix(path: Path, key: str, value: Any) -> np.ndarray:
         if not isinstance(value, list):
             raise _bad(path, f"'{key}' must be a matrix (a list of rows), got "
                            f"{_json_kind(value)}")
-        bad = _not_numbers(value)
+        bad = non_numbers(value)
         if bad:
             raise _bad(path, f"'{key}' must hold numbers, got {bad}")
         try:
@@ -433,7 +418,7 @@ def _op_from_dict(d: Mapping[str, Any]) -> OperatingPoint:
             if required:
                 raise ValueError(f"missing '{key}'")
             return None
-        bad = _not_numbers(value) if isinstance(value, list) else non_numbers(value)
+        bad = non_numbers(value)
         if bad:
             raise ValueError(f"'{key}' must hold numbers, got {bad}")
         out = np.asarray(value, float)
