@@ -12,19 +12,11 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..conditioning import AccuracyWarning
-from ..derivatives import propagated_noise
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import ArgumentError
 from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
-from .constrained import (
-    _alt,
-    _info,
-    _numeric_info,
-    _penalty_setup,
-    penalty_first_order,
-    physical_scale,
-)
+from .constrained import _alt, _info, _penalty_setup, penalty_first_order, penalty_numeric_info
 from .independent import output_matrices
 
 
@@ -127,16 +119,11 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     gap = (_check_canonical_spectrum(A, A_pen, G, alpha, system.scene.name) if G.size
            else 0.0)
     alt = _alt(terms)
-    numeric = {}
-    if alt is not None:
-        # The estimate is taken on the penalty model of the same terms (the same spectrum):
-        # the canonical A holds K_p ~ alpha Omega^2 exactly, which would dilute it.
-        A_pen_alt = canonical_first_order(terms.M, alt[1], alt[0], G, S, alpha, mu, omega)[3]
-        rounding = max(propagated_noise(Mp_inv, sigma) for sigma in terms.rounding)
-        numeric = _numeric_info(terms, A_pen, A_pen_alt, rounding,
-                                physical_scale(Mp_inv, terms.K, C))
-    elif terms.steps is not None:
-        numeric = {"step": dict(terms.steps)}
+    # The estimate is taken on the penalty model of the same terms (the same spectrum): the
+    # canonical A holds K_p ~ alpha Omega^2 exactly, which would dilute it.
+    A_pen_alt = (None if alt is None else
+                 canonical_first_order(terms.M, alt[1], alt[0], G, S, alpha, mu, omega)[3])
+    numeric = penalty_numeric_info(terms, A_pen, A_pen_alt, Mp_inv, C)
     Cfull, D, out_names, y0 = output_matrices(system, op)
     # Outputs read dq and v; in (p, q): dq = q, v = M_p^-1 p.
     Cout = np.hstack([Cfull[:, n:] @ Mp_inv, Cfull[:, :n]])

@@ -219,12 +219,19 @@ def _numeric_info(terms, A: np.ndarray, A_alt: np.ndarray | None,
     return out
 
 
-def physical_scale(Mp_inv: np.ndarray, K: np.ndarray, C: np.ndarray) -> float:
-    """max |M_p^-1 [K, C]|: the size of what the finite differences give in a penalty model's
-    A (its rows -M_p^-1 [K_p, C_p] also hold the penalty terms ~Omega^2 and ~2 mu Omega,
-    exact, which would make an error relative to max |A| look small)."""
-    return max(float(np.abs(Mp_inv @ K).max(initial=0.0)),
-               float(np.abs(Mp_inv @ C).max(initial=0.0)))
+def penalty_numeric_info(terms, A: np.ndarray, A_alt: np.ndarray | None,
+                         Mp_inv: np.ndarray | None, C: np.ndarray) -> dict:
+    """:func:`_numeric_info` of a penalty model's A (dA = -M_p^-1 [dK, dC]): the rounding of
+    K and C pushed through M_p^-1, the error relative to max |M_p^-1 [K, C]|, the size of what
+    the finite differences give (the rows -M_p^-1 [K_p, C_p] also hold the penalty terms
+    ~Omega^2 and ~2 mu Omega, exact, which would make an error relative to max |A| look
+    small). ``Mp_inv`` is needed only with ``A_alt``."""
+    if A_alt is None:
+        return _numeric_info(terms, A, None)
+    rounding = max(propagated_noise(Mp_inv, sigma) for sigma in terms.rounding)
+    scale = max(float(np.abs(Mp_inv @ terms.K).max(initial=0.0)),
+                float(np.abs(Mp_inv @ C).max(initial=0.0)))
+    return _numeric_info(terms, A, A_alt, rounding, scale)
 
 
 def _input_matrix(system, terms) -> np.ndarray:
@@ -397,7 +404,7 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     C = terms.C if terms.C is not None else np.zeros_like(terms.M)
     A, B = penalty_first_order(terms.M, C, terms.K, cp.jacobian, S, alpha, mu, omega)
     alt = _alt(terms)
-    A_alt, rounding = None, 0.0
+    A_alt = Mp_inv = None
     if alt is not None:
         A_alt = penalty_first_order(terms.M, alt[1], alt[0], cp.jacobian, S, alpha, mu,
                                     omega)[0]
@@ -405,12 +412,9 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
         n = terms.M.shape[0]
         Mp_inv = penalty_first_order(terms.M, C, terms.K, cp.jacobian, np.eye(n), alpha, mu,
                                      omega)[1][n:]
-        rounding = max(propagated_noise(Mp_inv, sigma) for sigma in terms.rounding)
-        scale = physical_scale(Mp_inv, terms.K, C)
     Cout, D, out_names, y0 = output_matrices(system, op)
     info = _info(system, op, cp, "penalty", terms.backend, alpha=alpha, mu=mu,
-                 omega=omega, **_numeric_info(terms, A, A_alt, rounding,
-                                              scale if alt is not None else None))
+                 omega=omega, **penalty_numeric_info(terms, A, A_alt, Mp_inv, C))
     return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names, M=Mp,
                        C_damp=Cp, K=Kp, Bu=S, G=cp.jacobian, operating_point=op.with_outputs(y0),
