@@ -301,10 +301,7 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
                                    f"{A.shape}")
     N = A.shape[0]
     if "t" in fields:
-        fields["t"] = t = fields["t"].reshape(-1)
-        if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
-            raise ModelFileError(path, "'t' must be finite times that increase strictly, as "
-                                       "linearize_trajectory takes them")
+        fields["t"] = fields["t"].reshape(-1)   # finite, increasing: the constructor checks
     n, m, p = (len(fields[k]) for k in _NAMES)
     half = n // 2  # second-order matrices: the coordinates of the states
     for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (1, p, m)),
