@@ -130,7 +130,7 @@ def _block_gain(M: np.ndarray, c: np.ndarray, b: np.ndarray, s: complex
     residue is a pole however small (the limit w -> 0 of the computed model grows without
     bound); only an entry that does not couple to the block at all stays finite."""
     k = M.shape[0]
-    lam = np.linalg.eigvals(M)
+    lam, V = np.linalg.eig(M)
     radius = np.finfo(float).eps ** (1.0 / k) * k * max(1.0, float(np.abs(M).max()))
     near = np.abs(lam - s) <= radius
     shape = (c.shape[0], b.shape[1])
@@ -142,8 +142,6 @@ def _block_gain(M: np.ndarray, c: np.ndarray, b: np.ndarray, s: complex
             at |= (c @ power @ b) != 0
             power = power @ N
         return np.zeros(shape, dtype=complex), at
-    lam, V = np.linalg.eig(M)
-    near = np.abs(lam - s) <= radius
     cv, vb = c @ V, np.linalg.solve(V, b)
     gain = sum((np.outer(cv[:, i], vb[i]) / (s - lam[i]) for i in np.flatnonzero(~near)),
                np.zeros(shape, dtype=complex))
