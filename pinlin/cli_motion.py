@@ -286,6 +286,7 @@ def _plot_histories(path: Path, title: str, t: np.ndarray,
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .formulations.constrained import constrained_effects
     from .linearization import linearize
     from .scene import Scene
     from .simulation import simulate
@@ -299,8 +300,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                          "method": "--method"}):
         sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
     n = len(sim.independent_names) // 2      # z: the linear model's states
-    effects = (scene.effects.in_play() + (["loops"] if scene.loops else [])
-               + (["contacts"] if scene.contacts else []))
+    effects = constrained_effects(scene.system)
     print(f"simulated '{scene.name}' (nonlinear, the scene's effects: "
           f"{', '.join(effects) or 'none'}) over {t[-1]:g} s: "
           f"{sim.info.get('method')}, {plural(int(sim.info.get('nfev', 0)), 'evaluation')}")

@@ -259,6 +259,7 @@ def validate(scene, name: str | None = None, *, picture: bool | None = None) -> 
     """
     from . import mjcf
     from .exceptions import PinlinError
+    from .formulations.constrained import constrained_effects
     from .linearization import linearize
     from .modal import modal
 
@@ -272,8 +273,7 @@ def validate(scene, name: str | None = None, *, picture: bool | None = None) -> 
         model = linearize(scene)
     except PinlinError as exc:
         return Validation(name, "pinlin refuses", " ".join(str(exc).split()))
-    effects = (system.scene.effects.in_play() + (["loops"] if scene.loops else [])
-               + (["contacts"] if system.constraints.contacts else []))
+    effects = constrained_effects(system)
     res = Validation(name, "pass", effects=effects, nv=system.nv)
     modes = modal(model, method="general")
     ref = modes.eigenvalues
