@@ -32,6 +32,7 @@ from .exceptions import ArgumentError, ModelError
 from .linearization import _system, operating_point
 from .operating_point import OperatingPoint
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
+from .signals import Signal
 from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain
 from .system import System
 
@@ -92,8 +93,6 @@ class _Inputs:
 
     def __init__(self, u: object, t: np.ndarray, u0: np.ndarray,
                  names: tuple[str, ...] = ()) -> None:
-        from .signals import Signal
-
         nu = u0.size
         self.u0, self.t = u0, t
         self.samples: np.ndarray | None = None
