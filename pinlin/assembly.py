@@ -154,16 +154,15 @@ def independent_rows(jac: np.ndarray, groups: list[tuple[str, str, range]], sour
         return np.zeros(0, dtype=int)
     diag, piv = pivoted_qr(jac.T)
     scale = diag[0] if diag.size else 0.0
-    rank = int(np.count_nonzero(diag > RANK_TOL * max(scale, 1e-300)))
+    floor = RANK_TOL * max(scale, 1e-300)     # |entries| below it count as zero
+    rank = int(np.count_nonzero(diag > floor))
     keep = np.sort(piv[:rank])
     kept = set(keep.tolist())
     for fld, what, own in groups:
         if not kept.intersection(own):
-            rows = jac[list(own)]
             why = ("its frames cannot move (a contact) or move relative to each other (a "
                    "loop) at this configuration: its rows of the constraint Jacobian are "
-                   "zero"
-                   if not np.abs(rows).max(initial=0.0) > RANK_TOL * max(scale, 1e-300)
+                   "zero" if not np.abs(jac[list(own)]).max(initial=0.0) > floor
                    else "every row repeats others")
             raise SceneError(source, fld, f"{what} adds no independent constraint: {why}")
     return keep
