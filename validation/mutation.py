@@ -174,9 +174,9 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/frequency.py", "    H[pole] = np.inf\n", "",
         "a frequency response exactly at a pole keeps the 0 placeholder instead of inf"),
     "one_joint_jacobian_flat": (
-        "pinlin/constraints.py",
-        "J1 = pin.getFrameJacobian(kin, kd, f1, LWA).reshape(6, -1)[:, cols]",
-        "J1 = pin.getFrameJacobian(kin, kd, f1, LWA)[:, cols]",
+        "pinlin/loop_kernels.py",
+        "    return pin.getFrameJacobian(model, data, frame, LWA).reshape(6, -1)\n",
+        "    return pin.getFrameJacobian(model, data, frame, LWA)\n",
         "a one-joint robot's 6x1 frame Jacobian used as eigenpy returns it (a vector)"),
     "symmetric_mass_unchecked": (
         "pinlin/modal.py", "    for mat in (model.K, model.M):", "    for mat in (model.K,):",
