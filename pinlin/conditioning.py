@@ -34,6 +34,7 @@ the limit the raw estimate warns from :data:`WARN_CONDITION` as before.
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -104,10 +105,10 @@ def warn_if_ill_conditioned(what: str, condition: float, name: str,
                             threshold: float = WARN_CONDITION, stacklevel: int = 4) -> None:
     """Issue an :class:`AccuracyWarning` when ``condition`` exceeds ``threshold`` (a
     non-positive estimate, from an inverse that is not positive definite, counts as infinite)."""
-    if not np.isfinite(condition) or condition <= 0.0:
+    if not math.isfinite(condition) or condition <= 0.0:
         condition = float("inf")
     if condition > threshold:
-        digits = 16 - np.log10(condition) if np.isfinite(condition) else 0.0
+        digits = 16 - math.log10(condition) if math.isfinite(condition) else 0.0
         warnings.warn(AccuracyWarning(
             f"model '{name}': the {what} has condition number {condition:.2e}; about "
             f"{max(digits, 0):.0f} significant digits of the result are reliable", condition),

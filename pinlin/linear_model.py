@@ -169,7 +169,9 @@ def _check_finite(fields: Mapping[str, Any], model: str) -> None:
     for arr in map(fields.get, MATRICES):
         if arr is None or known(id(arr)) is arr:
             continue
-        total += vdot(arr, arr)
+        # ddot needs C order: a column-major array (Pinocchio's M) is read as its transpose,
+        # the same entries, instead of being copied.
+        total += vdot(arr, arr) if arr.flags.c_contiguous else vdot(arr.T, arr.T)
     if math.isfinite(total):
         return
     for key in MATRICES:
