@@ -29,6 +29,7 @@ import scipy.integrate
 
 from .arrays import non_numbers, read_only
 from .exceptions import ArgumentError, ModelError
+from .formulations.constrained import constrained_effects
 from .linearization import _system, operating_point
 from .operating_point import OperatingPoint
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
@@ -408,8 +409,7 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
                             "chart (dq, v) about a reference re-centred past "
                             f"{CHART_LIMIT:g} rad" if system.nq != nv else "(dq, v)"),
             "energy": energy_note, "notes": notes,
-            "effects": system.scene.effects.in_play() + (["loops"] if system.scene.loops
-                                                         else [])}
+            "effects": constrained_effects(system)}
     return Simulation(
         t=read_only(grid), x=read_only(X), z=read_only(Z), q=read_only(Q), v=read_only(V),
         u=read_only(U), y=read_only(np.array(Y)), drift=read_only(drift),
