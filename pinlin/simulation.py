@@ -351,8 +351,8 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
         ArgumentError, ShapeError: a bad argument.
         EquilibriumError: as :func:`pinlin.operating_point`, the scene's q0 cannot be held
             by its inputs (give the state with ``v0`` to simulate from it anyway).
-        ModelError: weld loops or loops on a floating base; a singular mass matrix; the
-            mechanism reaching a position where its loops do not close; a failed step.
+        ModelError: a singular mass matrix; the mechanism reaching a position where its
+            loops do not close; a failed step.
     """
     system = _system(scene)
     grid = _time_grid(t)

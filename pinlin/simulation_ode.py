@@ -4,10 +4,11 @@
     M(q) v' + b(q, v) = S u + tau_spring(q) - D v  (- Phi_q^T lam with constraints)
 
 with exactly the scene's effects (gravity, springs, viscous damping, armature in M, steady
-rotation through :meth:`pinlin.System.rnea`, loops and mimic couplings; no joint limits,
-friction or contacts). Each class offers ``initial_state(dx0)``, ``rhs(t, s, u)``,
-``state(s) -> (q, v)`` and ``after_step(s)``, which returns a state in new coordinates (and
-why) when the integrator must restart in them.
+rotation through :meth:`pinlin.System.rnea`, loops, contacts held at their anchors and
+mimic couplings; no joint limits, friction, or contacts that lift off or slip). Each class
+offers ``initial_state(dx0)``, ``rhs(t, s, u)``, ``state(s) -> (q, v)`` and
+``after_step(s)``, which returns a state in new coordinates (and why) when the integrator must
+restart in them.
 
 :class:`OpenChain` (floating bases included). Runge-Kutta stages add states linearly, which
 is only valid in a vector space, so the state is s = (dq, v) in a chart
@@ -18,19 +19,22 @@ an angle of the chart (free flyer, spherical, planar or continuous joint) exceed
 :data:`CHART_LIMIT`, it is re-centred (q_ref := q, dq := 0). q stays on the manifold (unit
 quaternions) by construction; ``q + dq`` is never formed.
 
-:class:`Mechanism` (loops, mimic couplings). The state is s = (dz, z') in independent
-coordinates z (the partition of :func:`pinlin.assembly.partition` at q0; 1-DoF joints, whose
-chart is additive). Each evaluation closes the loops by Newton on the dependent coordinates
-with z held (warm-started from the last configuration with the first-order predictor R dz,
-iterated to rounding level), sets v = R(q) z' with R the partitioned nullspace basis
-(G R = 0, G the independent rows of Phi_q) and solves the KKT system of
-:mod:`pinlin.formulations.motion`, M a - G^T lam = tau - b, G a = -Phi_qq[v, v], for
-z'' = a[z]. The motion stays on the constraint manifold by construction, with no Baumgarte
-terms and no projection to tune: |Phi(q)| is Newton's rounding level and |Phi_q v| the
-rounding of R at every state, whatever the horizon. Where the dependent block of G becomes
-ill-conditioned (near a singular position of z; :data:`PARTITION_RATIO` times worse than a
-fresh choice) z is re-chosen (pivoted QR) after the step. Weld loops and loops on a floating
-base are refused (as in :mod:`pinlin.formulations.motion`).
+:class:`Mechanism` (loops, contacts, mimic couplings; standing robots, welds included). The
+state is s = (c_z, v_z): c = ``pin.difference(q_ref, q)`` is the chart of :class:`OpenChain`
+and z the independent coordinates (the partition of :func:`pinlin.assembly.partition` at
+q0, any joints, a floating base's too); v_z their velocities. Each evaluation closes the
+loops by Newton on the dependent chart coordinates c_d with c_z held (d Phi / d c =
+Phi_q ``pin.dIntegrate(q_ref, c, ARG1)``; warm-started from the last configuration with the
+first-order predictor R dc_z, iterated to rounding level), sets v = R(q) v_z with R the
+partitioned nullspace basis (G R = 0, G the independent rows of Phi_q) and solves the KKT
+system of :mod:`pinlin.formulations.motion`, M a - G^T lam = tau - b, G a = -Phi_qq[v, v],
+for v_z' = a[z]; c_z' = (J(c) v)[z] as for open chains. The motion stays on the constraint
+manifold by construction, with no Baumgarte terms and no projection to tune: |Phi(q)| is
+Newton's rounding level and |Phi_q v| the rounding of R at every state, whatever the
+horizon. The chart is re-centred as for open chains (with 1-DoF joints only it is additive
+and never is); where the dependent block of G becomes ill-conditioned (near a singular
+position of z; :data:`PARTITION_RATIO` times worse than a fresh choice) z is re-chosen
+(pivoted QR) after the step.
 """
 
 from __future__ import annotations
@@ -59,6 +63,20 @@ NEWTON_TOLERANCE = 1e-14
 PLANAR = "JointModelPlanar"
 
 
+def chart_angles(system: System) -> list[np.ndarray]:
+    """Per Lie-group joint, the chart coordinates that are rotation angles (a free flyer's or
+    spherical joint's three, a planar joint's or continuous joint's one) [indices into v]."""
+    angles = []
+    for j in system.joints.values():
+        first = {FREE_FLYER: 3, SPHERICAL: 0, PLANAR: 2}.get(j.kind)
+        if first is not None:
+            size = 3 if j.kind in (FREE_FLYER, SPHERICAL) else 1
+            angles.append(np.arange(j.idx_v + first, j.idx_v + first + size))
+        elif j.nq != j.nv:
+            angles.append(np.arange(j.idx_v, j.idx_v + j.nv))
+    return angles
+
+
 class OpenChain:
     """s = (dq, v) in the chart about q_ref (module docstring)."""
 
@@ -67,14 +85,7 @@ class OpenChain:
         self.nv = system.nv
         self.q_ref = op.q.copy()
         self.lie = system.nq != system.nv
-        self.angles: list[np.ndarray] = []  # chart coordinates that are angles, per joint
-        for j in system.joints.values():
-            first = {FREE_FLYER: 3, SPHERICAL: 0, PLANAR: 2}.get(j.kind)
-            if first is not None:
-                size = 3 if j.kind in (FREE_FLYER, SPHERICAL) else 1
-                self.angles.append(np.arange(j.idx_v + first, j.idx_v + first + size))
-            elif j.nq != j.nv:
-                self.angles.append(np.arange(j.idx_v, j.idx_v + j.nv))
+        self.angles = chart_angles(system)
 
     def initial_state(self, dx0: np.ndarray) -> tuple[np.ndarray, list[str]]:
         if dx0.size != 2 * self.nv:
@@ -108,22 +119,15 @@ class OpenChain:
 
 
 class Mechanism:
-    """s = (dz, z') in independent coordinates; q(z) closed by Newton (module docstring)."""
+    """s = (c_z, v_z): independent chart coordinates and velocities; q(c_z) closed by Newton
+    (module docstring)."""
 
     def __init__(self, system: System, op: OperatingPoint) -> None:
-        if system.base_joint is not None:
-            raise ModelError(f"scene '{system.scene.name}': loops or contacts on a "
-                             "floating-base robot (a standing robot) are not supported by "
-                             "pinlin.simulate yet (fixed-base mechanisms are)")
-        if system.constraints.has_welds:
-            raise ModelError(f"scene '{system.scene.name}': weld loops and weld contacts are "
-                             "not supported by pinlin.simulate yet (point loops, point "
-                             "contacts and mimic couplings are)")
         self.system, self.model, self.op = system, system.model, op
         self.cons, self.nv = system.constraints, system.nv
-        self.joint_nv = np.zeros(self.nv, dtype=int)
-        for j in system.joints.values():
-            self.joint_nv[j.idx_v:j.idx_v + j.nv] = j.nv
+        self.q_ref = op.q.copy()
+        self.lie = system.nq != system.nv
+        self.angles = chart_angles(system)
         jac = self.cons.jacobian(op.q)
         part = partition(system, op.q, jac)
         self.rows, self.dropped = part.rows, part.dropped
@@ -134,12 +138,6 @@ class Mechanism:
         self.cache: tuple[np.ndarray, ...] = ()
 
     def _use(self, independent: np.ndarray) -> None:
-        for i in independent:
-            if self.joint_nv[i] != 1:
-                raise ModelError(f"scene '{self.system.scene.name}': independent coordinate "
-                                 f"'{self.system.coordinate_names[i]}' is not a 1-DoF joint; "
-                                 "pinlin.simulate needs 1-DoF independent joints (name them "
-                                 "in operating_point.independent)")
         self.z, self.d = np.asarray(independent), complement(self.nv, independent)
 
     def initial_state(self, dx0: np.ndarray) -> tuple[np.ndarray, list[str]]:
@@ -151,8 +149,9 @@ class Mechanism:
         else:
             raise ShapeError(f"dx0 must have 2 nv = {2 * nv} entries (all coordinates) or 2 nz "
                              f"= {2 * nz} (the independent ones), got {dx0.size}")
+        self.q_ref = self.op.q.copy()
         G = self.cons.jacobian(self.op.q)[self.rows]
-        self.cache = (np.zeros(nz), self.op.q, G, self._basis(G))
+        self.cache = (np.zeros(nz), np.zeros(nv), self.op.q, G, self._basis(G))
         s = np.concatenate([dz, self.op.v[self.z] + dzdot])
         q, v = self.state(s)
         notes = []
@@ -165,33 +164,36 @@ class Mechanism:
         return s, notes
 
     def _configure(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(q, G, R) at chart state s: Newton on the dependent coordinates, z held, from the
-        last configuration and its first-order predictor R (dz - dz_last)."""
-        dz = s[:self.z.size]
-        dz_c, q, G, R = self.cache
-        if np.array_equal(dz, dz_c):
+        """(q, G, R) at chart state s: Newton on the dependent chart coordinates c_d, c_z held,
+        from the last configuration and its first-order predictor."""
+        cz = s[:self.z.size]
+        cz_c, c, q, G, R = self.cache
+        if np.array_equal(cz, cz_c):
             return q, G, R
-        cons, rows, model = self.cons, self.rows, self.model
-        q = pin.integrate(model, q, R @ (dz - dz_c))
+        cons, rows, model, d = self.cons, self.rows, self.model, self.d
+        c = c.copy()
+        c[d] += (R @ (cz - cz_c))[d]
+        c[self.z] = cz
         previous = np.inf
         for _ in range(NEWTON_ITERATIONS):
-            phi = cons.residual(q)[rows]
+            q = pin.integrate(model, self.q_ref, c)
+            phi, G = cons.residual_and_jacobian(q)
+            phi, G = phi[rows], G[rows]
             best = float(np.abs(phi).max(initial=0.0))
             # Converged at rounding level, or a step no longer shrinks the residual.
             if best <= NEWTON_TOLERANCE or (best < 1e-10 and best > 0.25 * previous):
                 break
             previous = best
-            Gd = cons.jacobian(q)[rows][:, self.d]
-            dq = np.zeros(self.nv)
-            dq[self.d] = np.linalg.solve(Gd, -phi)
-            q = pin.integrate(model, q, dq)
+            # d Phi / d c: G times d q / d c of the chart q = integrate(q_ref, c).
+            jac = G @ pin.dIntegrate(model, self.q_ref, c, pin.ArgumentPosition.ARG1) \
+                if self.lie else G
+            c[d] -= np.linalg.solve(jac[:, d], phi)
         if not best < 1e-9:
             raise ModelError(f"scene '{self.system.scene.name}': the loops do not close along "
                              f"the motion (residual {best:.3g} m or rad after Newton): the "
                              "mechanism reached a singular position")
-        G = cons.jacobian(q)[rows]
         R = self._basis(G)
-        self.cache = (dz.copy(), q, G, R)
+        self.cache = (cz.copy(), c, q, G, R)
         return q, G, R
 
     def _basis(self, G: np.ndarray) -> np.ndarray:
@@ -209,8 +211,7 @@ class Mechanism:
     def rhs(self, t: float, s: np.ndarray, u: np.ndarray) -> np.ndarray:
         system, nv = self.system, self.nv
         q, G, R = self._configure(s)
-        zdot = s[self.z.size:]
-        v = R @ zdot
+        v = R @ s[self.z.size:]
         rhs = np.concatenate([system.applied_force(q, v, u) - system.rnea(q, v, np.zeros(nv)),
                               -self.cons.bias_acceleration(q, v)[self.rows]])
         kkt = self._kkt
@@ -218,14 +219,24 @@ class Mechanism:
         kkt[:nv, nv:] = -G.T
         kkt[nv:, :nv] = G
         a = np.linalg.solve(kkt, rhs)[:nv]
-        return np.concatenate([zdot, a[self.z]])
+        cdot = pin.dDifference(self.model, self.q_ref, q, pin.ArgumentPosition.ARG1) @ v \
+            if self.lie else v
+        return np.concatenate([cdot[self.z], a[self.z]])
 
     def after_step(self, s: np.ndarray) -> tuple[np.ndarray, str] | None:
-        """New independent coordinates where the dependent block of G is PARTITION_RATIO times
-        worse conditioned than that of a fresh choice (pivoted QR of G, actuated joints
-        preferred as independent): near a singular position of the current z, errors in z
-        are amplified by that condition number in the dependent coordinates."""
+        """A state in new coordinates, else None: the chart re-centred (q_ref := q) where an
+        angle of it exceeds CHART_LIMIT, as for open chains; new independent coordinates
+        where the dependent block of G is PARTITION_RATIO times worse conditioned than that
+        of a fresh choice (pivoted QR of G, actuated joints preferred as independent): near a
+        singular position of the current z, errors in z are amplified by that condition
+        number in the dependent coordinates."""
         q, G, R = self._configure(s)
+        v = R @ s[self.z.size:]
+        c = self.cache[1]
+        if any(np.linalg.norm(c[i]) > CHART_LIMIT for i in self.angles):
+            self.q_ref = q.copy()
+            self.cache = (np.zeros(self.z.size), np.zeros(self.nv), q, G, R)
+            return np.concatenate([np.zeros(self.z.size), v[self.z]]), "chart"
         if not self.d.size:
             return None
         current = np.linalg.cond(G[:, self.d])
@@ -237,11 +248,10 @@ class Mechanism:
         independent = np.sort(piv[G.shape[0]:])
         if current <= PARTITION_RATIO * np.linalg.cond(G[:, complement(self.nv, independent)]):
             return None
-        v = R @ s[self.z.size:]
         self._use(independent)
-        dz = pin.difference(self.model, self.op.q, q)[self.z]
-        self.cache = (dz, q, G, self._basis(G))
-        return np.concatenate([dz, v[self.z]]), "partition"
+        c = pin.difference(self.model, self.q_ref, q)
+        self.cache = (c[self.z], c, q, G, self._basis(G))
+        return np.concatenate([c[self.z], v[self.z]]), "partition"
 
     def drift(self, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
         return (float(np.abs(self.cons.residual(q)).max()),

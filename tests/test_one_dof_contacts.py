@@ -50,12 +50,11 @@ def test_held_pendulum_has_no_states_and_its_forces_balance_gravity(tmp_path, ki
     assert pinlin.modal(model).eigenvalues.size == 0
     assert main(["response", str(path), "--t-end", "1"]) == 0
     assert "no states" in capfd.readouterr().out
-    if kind == "point":     # simulate takes point contacts (welds: refused, exit 2)
-        assert main(["response", str(path), "--t-end", "0.1", "--nonlinear"]) == 0
-        assert main(["simulate", str(path), "--t-end", "0.1"]) == 0
-        assert "final deviation: none (no states" in capfd.readouterr().out
-        sim = pinlin.simulate(str(path), t=[0.0, 0.1])
-        assert sim.info["effects"] == ["gravity", "contacts"]   # as the CLI's banner says
+    assert main(["response", str(path), "--t-end", "0.1", "--nonlinear"]) == 0
+    assert main(["simulate", str(path), "--t-end", "0.1"]) == 0
+    assert "final deviation: none (no states" in capfd.readouterr().out
+    sim = pinlin.simulate(str(path), t=[0.0, 0.1])
+    assert sim.info["effects"] == ["gravity", "contacts"]   # as the CLI's banner says
     assert main(["validate", str(path), "--out-dir", str(tmp_path / "v")]) == 0
     report = (tmp_path / "v" / f"held_{kind}.md").read_text()
     assert "**pass**" in report and "2 eigenvalues" in report
