@@ -189,6 +189,13 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "        out.update(error_estimate(A, A_alt, rounding, scale))",
         "        out.update(error_estimate(A, A_alt, rounding))",
         "a penalty model's finite-difference error estimate divided by max |A|"),
+    "standing_chart_jacobian_dropped": (
+        "pinlin/simulation_ode.py",
+        "        cdot = pin.dDifference(self.model, self.q_ref, q, pin.ArgumentPosition.ARG1)"
+        " @ v \\\n            if self.lie else v\n",
+        "        cdot = v\n",
+        "a standing robot's simulation integrates the base's tangent velocity as if its chart "
+        "were additive"),
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),
