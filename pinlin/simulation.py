@@ -374,9 +374,10 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             from None
     if not np.all(np.isfinite(deviation)):
         raise ArgumentError("dx0", "contains NaN or inf")
-    if deviation.size == 2 * nv:  # (a wrong size is the initial state's to refuse)
-        for part, limit, what in ((deviation[:nv], POSITION_LIMIT, "positions [m or rad]"),
-                                  (deviation[nv:], COEFFICIENT_LIMIT, "velocities")):
+    if deviation.size % 2 == 0:  # 2 nv or 2 nz (a wrong size is the initial state's to refuse)
+        half = deviation.size // 2
+        for part, limit, what in ((deviation[:half], POSITION_LIMIT, "positions [m or rad]"),
+                                  (deviation[half:], COEFFICIENT_LIMIT, "velocities")):
             if part.size and np.abs(part).max() > limit:
                 raise ArgumentError("dx0", f"has an entry of size {np.abs(part).max():.3g}; "
                                            f"its {what} are limited to |x| <= {limit:g}")

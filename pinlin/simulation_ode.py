@@ -61,6 +61,10 @@ NEWTON_ITERATIONS = 30
 #: Newton stops once max |Phi| is below this [m or rad] (rounding: ~1e-16 per metre).
 NEWTON_TOLERANCE = 1e-14
 PLANAR = "JointModelPlanar"
+#: (where, why) of a failure to close the loops, for the messages of :class:`Mechanism`.
+_ALONG = ("along the motion", "the mechanism reached a singular position")
+_AT_START = ("at the initial state", "dx0 moves the independent coordinates where the "
+             "dependent ones cannot follow (a configuration the loops or contacts cannot reach)")
 
 
 def chart_angles(system: System) -> list[np.ndarray]:
@@ -136,6 +140,7 @@ class Mechanism:
         self._use(part.independent)
         self.columns = part.independent  # of z in x, fixed at q0
         self.cache: tuple[np.ndarray, ...] = ()
+        self._where = _ALONG  # (where, why) for error messages
 
     def _use(self, independent: np.ndarray) -> None:
         self.z, self.d = np.asarray(independent), complement(self.nv, independent)
@@ -153,9 +158,16 @@ class Mechanism:
         G = self.cons.jacobian(self.op.q)[self.rows]
         self.cache = (np.zeros(nz), np.zeros(nv), self.op.q, G, self._basis(G))
         s = np.concatenate([dz, self.op.v[self.z] + dzdot])
+        self._where = _AT_START
         q, v = self.state(s)
+        self._where = _ALONG
+        if self.lie:  # the chart starts at q: dDifference's log map wraps angles beyond pi
+            self.q_ref = q.copy()
+            cz, c, q, G, R = self.cache
+            self.cache = (np.zeros(nz), np.zeros(nv), q, G, R)
+            s = np.concatenate([np.zeros(nz), s[nz:]])
         notes = []
-        if dx0.size == 2 * nv:
+        if dx0.size == 2 * nv and np.any(dx0):
             dq = pin.difference(self.model, pin.integrate(self.model, self.op.q, dx0[:nv]), q)
             dv = v - self.op.v - dx0[nv:]
             notes.append(f"dx0 given in all coordinates: its independent part kept, the loops "
@@ -187,11 +199,16 @@ class Mechanism:
             # d Phi / d c: G times d q / d c of the chart q = integrate(q_ref, c).
             jac = G @ pin.dIntegrate(model, self.q_ref, c, pin.ArgumentPosition.ARG1) \
                 if self.lie else G
-            c[d] -= np.linalg.solve(jac[:, d], phi)
+            try:
+                c[d] -= np.linalg.solve(jac[:, d], phi)
+            except np.linalg.LinAlgError:
+                break
+            if not np.all(np.isfinite(c)):
+                break
         if not best < 1e-9:
-            raise ModelError(f"scene '{self.system.scene.name}': the loops do not close along "
-                             f"the motion (residual {best:.3g} m or rad after Newton): the "
-                             "mechanism reached a singular position")
+            raise ModelError(f"scene '{self.system.scene.name}': the loops do not close "
+                             f"{self._where[0]} (residual {best:.3g} m or rad after Newton): "
+                             f"{self._where[1]}")
         R = self._basis(G)
         self.cache = (cz.copy(), c, q, G, R)
         return q, G, R
@@ -201,7 +218,11 @@ class Mechanism:
         R = np.zeros((self.nv, self.z.size))
         R[self.z, np.arange(self.z.size)] = 1.0
         if self.d.size:
-            R[self.d] = -np.linalg.solve(G[:, self.d], G[:, self.z])
+            try:
+                R[self.d] = -np.linalg.solve(G[:, self.d], G[:, self.z])
+            except np.linalg.LinAlgError:
+                raise ModelError(f"scene '{self.system.scene.name}': the constraints' Jacobian "
+                                 f"is singular {self._where[0]}: {self._where[1]}") from None
         return R
 
     def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -218,7 +239,12 @@ class Mechanism:
         kkt[:nv, :nv] = system.mass_matrix(q)
         kkt[:nv, nv:] = -G.T
         kkt[nv:, :nv] = G
-        a = np.linalg.solve(kkt, rhs)[:nv]
+        try:
+            a = np.linalg.solve(kkt, rhs)[:nv]
+        except np.linalg.LinAlgError:
+            raise ModelError(f"scene '{self.system.scene.name}': the equations of motion are "
+                             f"singular {self._where[0]} (M singular on the constraints' "
+                             "nullspace)") from None
         cdot = pin.dDifference(self.model, self.q_ref, q, pin.ArgumentPosition.ARG1) @ v \
             if self.lie else v
         return np.concatenate([cdot[self.z], a[self.z]])
