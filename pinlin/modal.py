@@ -79,9 +79,10 @@ def symmetric_applicable(model: LinearModel) -> bool:
     if model.info.get("velocity_terms", True) and np.count_nonzero(model.C_damp):
         return False
     for mat in (model.K, model.M):     # dsygvd reads one triangle of each
-        skew = mat - mat.T
-        if skew.any() and float(np.abs(skew).max()) > SYMMETRY_RTOL * max(
-                float(np.abs(mat).max()), _TINY):
+        # max |mat - mat^T| in one reduction: the difference is antisymmetric, exactly (a - b
+        # and b - a round alike), so its largest entry is its largest magnitude.
+        skew = float((mat - mat.T).max(initial=0.0))
+        if skew > 0.0 and skew > SYMMETRY_RTOL * max(float(np.abs(mat).max()), _TINY):
             return False
     return True
 
@@ -409,7 +410,8 @@ def _check_entries(model: LinearModel) -> float:
         mat = getattr(model, key)
         if mat is None or mat.size == 0:
             continue
-        total = float(np.vdot(mat, mat))
+        # (BLAS reads C order: a column-major matrix, Pinocchio's M, through its transpose)
+        total = float(np.vdot(mat, mat) if mat.flags.c_contiguous else np.vdot(mat.T, mat.T))
         if key == "A":
             a2 = total
         if total <= limit2:  # NaN compares False (BLAS ddot: no FP warnings)
@@ -480,7 +482,8 @@ def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = Non
     if A.shape[0] == 0:
         return _empty(model, rigid_tol)
     wr, wi, _, vr = es.geev(A, left=False)
-    lam = wr + 1j * wi
+    lam = np.empty(wr.size, dtype=complex)
+    lam.real, lam.imag = wr, wi
     magnitudes = np.abs(lam)                # in dgeev's order
     # Sort by |lam|, then Re, then +Im first: LAPACK returns conjugate pairs of a real matrix
     # as exact conjugates, so each pair ties on (|lam|, Re) and lands adjacent.
@@ -518,8 +521,11 @@ def _pairs_adjacent(order: np.ndarray, wi: np.ndarray) -> np.ndarray:
     p (Im > 0) and p + 1; sorting by (|lam|, Re, -Im) keeps them adjacent unless another pair
     is equal to the bit (a repeated eigenvalue, e.g. symmetric constraint modes), which puts
     both +Im first: then each +Im is followed by its own partner."""
-    pos = np.flatnonzero(wi[order] > 0)
-    if np.array_equal(order[np.minimum(pos + 1, len(order) - 1)], order[pos] + 1):
+    pos = (wi[order] > 0).nonzero()[0]
+    if not pos.size:
+        return order
+    after = pos + 1
+    if after[-1] < len(order) and (order[after] == order[pos] + 1).all():
         return order
     out: list[int] = []
     for p in order.tolist():
