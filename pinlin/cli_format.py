@@ -31,6 +31,24 @@ def options_named(options: dict[str, str]) -> Iterator[None]:
         raise ArgumentError(options[exc.argument], exc.reason) from None
 
 
+def mode_rows(modes, numbers: list[int] | None, option: str) -> list[int] | None:
+    """Eigenvalue indices of the mode-table rows ``numbers`` (1 = first row, as printed) of a
+    :class:`pinlin.ModalAnalysis`; a row named twice or beyond the table is refused."""
+    if numbers is None:
+        return None
+    if len(set(numbers)) != len(numbers):
+        raise ArgumentError(option, f"names a mode twice: {' '.join(map(str, numbers))}")
+    keep = modes.modes()
+    out = []
+    for k in numbers:
+        if not 1 <= k <= len(keep):
+            raise ArgumentError(option, f"no mode {k}: the mode table of "
+                                        f"'{modes.model.name}' has rows 1 to {len(keep)}"
+                                if keep else f"no mode {k}: the model has no modes")
+        out.append(keep[k - 1])
+    return out
+
+
 def plural(count: int, word: str, plural: str | None = None) -> str:
     """"1 input", "2 inputs" (``plural`` for irregular words)."""
     return f"{count} {word if count == 1 else plural or word + 's'}"

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_format import check_out, file_name, folder_name, options_named, plural
+from .cli_format import check_out, file_name, folder_name, mode_rows, options_named, plural
 from .exceptions import ArgumentError, ModelFileError
 
 #: The trajectory progress bar appears once a run has taken this long [s].
@@ -401,13 +401,24 @@ def _cmd_response(args: argparse.Namespace) -> int:
 
 def _cmd_validity(args: argparse.Namespace) -> int:
     from .files import check_folder_target, make_folder
+    from .linearization import linearize
+    from .modal import modal
+    from .scene import Scene
     from .validity import validity
 
     folder = None
     if args.out_dir is not None:
         folder = check_folder_target(folder_name(args.out_dir, "--out-dir"), "--out-dir")
-    result = validity(args.target, amplitudes=args.amplitudes, periods=args.periods,
-                      tolerance=args.tolerance, modes=args.modes, direction=args.direction)
+    scene = Scene.resolve(args.target)
+    modes = None
+    if args.modes is not None:    # rows of the mode table, numbered from 1 as printed
+        modes = mode_rows(modal(linearize(scene)), args.modes, "--modes")
+    with options_named({"amplitudes": "--amplitudes", "periods": "--periods",
+                        "tolerance": "--tolerance", "modes": "--modes",
+                        "direction": "--direction", "rtol": "--tolerance",
+                        "atol": "--amplitudes"}):
+        result = validity(scene, amplitudes=args.amplitudes, periods=args.periods,
+                          tolerance=args.tolerance, modes=modes, direction=args.direction)
     print(result.table())
     if folder is not None:
         make_folder(folder)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from .cli_format import file_name, plural
+from .cli_format import file_name, mode_rows, plural
 from .exceptions import ArgumentError
 
 
@@ -19,21 +19,6 @@ def _linearize(args: argparse.Namespace):
     model = linearize(scene, allow_non_equilibrium=True if args.allow_non_equilibrium
                       else None)
     return scene, model, modal(model)
-
-
-def _chosen(modes, numbers: list[int] | None) -> list[int] | None:
-    """Eigenvalue indices of the mode-table rows ``numbers`` (1 = first row)."""
-    if numbers is None:
-        return None
-    keep = modes.modes()
-    out = []
-    for k in numbers:
-        if not 1 <= k <= len(keep):
-            raise ArgumentError("--mode", f"no mode {k}: the mode table of "
-                                          f"'{modes.model.name}' has rows 1 to {len(keep)}"
-                                if keep else f"no mode {k}: the model has no modes")
-        out.append(keep[k - 1])
-    return out
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
@@ -53,7 +38,7 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     if args.mode is not None and len(set(args.mode)) != len(args.mode):
         raise ArgumentError("--mode", f"names a mode twice: {' '.join(map(str, args.mode))}")
     scene, model, modes = _linearize(args)
-    indices = _chosen(modes, args.mode)
+    indices = mode_rows(modes, args.mode, "--mode")
     if (png or gif) and indices is None and not default_modes(modes):
         raise ArgumentError("--plot" if png else "--gif",
                             f"model '{model.name}' has no mode to draw (no states)")

@@ -84,6 +84,7 @@ from .linear_model import LinearModel
 from .linearization import _system, linearize
 from .modal import ModalAnalysis, modal
 from .response import response
+from .scene import POSITION_LIMIT
 from .simulation import MAX_CYCLES, simulate
 from .system import System
 from .validity_report import Bound, Case, Validity, notes
@@ -136,14 +137,16 @@ def _check_integration(rtol: object, atol: object, tolerance: float, smallest: f
     rtol = _positive("rtol", rtol, "(relative, of the nonlinear simulation)")
     atol = _positive("atol", atol, "(absolute, of the nonlinear simulation)")
     if NOISE_RTOL * rtol >= tolerance:
-        raise ArgumentError("rtol", f"{rtol:g} lets integration noise (~{NOISE_RTOL:g} rtol) "
-                                    f"reach the tolerance {tolerance:g}; use rtol <= "
+        raise ArgumentError("rtol", f"the tolerance {tolerance:g} is within the integration "
+                                    f"noise of rtol = {rtol:g} (~{NOISE_RTOL:g} rtol): use a "
+                                    f"tolerance above {NOISE_RTOL * rtol:g} or rtol <= "
                                     f"{tolerance / NOISE_RTOL / 10:.1g}")
     if NOISE_ATOL * atol / smallest >= tolerance:
-        raise ArgumentError("atol", f"{atol:g} lets integration noise (~{NOISE_ATOL:g} atol / "
-                                    f"amplitude) reach the tolerance {tolerance:g} at the "
-                                    f"smallest amplitude {smallest:g}; use atol <= "
-                                    f"{tolerance * smallest / NOISE_ATOL / 10:.1g}")
+        raise ArgumentError("atol", f"at the smallest amplitude {smallest:g} the integration "
+                                    f"noise of atol = {atol:g} (~{NOISE_ATOL:g} atol / "
+                                    f"amplitude) reaches the tolerance {tolerance:g}: use "
+                                    f"amplitudes >= {NOISE_ATOL * atol / tolerance * 10:.1g} "
+                                    f"or atol <= {tolerance * smallest / NOISE_ATOL / 10:.1g}")
 
 
 def _amplitudes(amplitudes: object) -> tuple[np.ndarray, bool]:
@@ -161,9 +164,11 @@ def _amplitudes(amplitudes: object) -> tuple[np.ndarray, bool]:
     if arr.size == 0:
         raise ArgumentError("amplitudes", "expected at least one amplitude [rad or m], got an "
                                           "empty sequence (or None for the default sweep)")
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
-        raise ArgumentError("amplitudes", f"expected finite amplitudes > 0 [rad or m], got "
-                                          f"{arr[~(np.isfinite(arr) & (arr > 0))][:3]}")
+    ok = np.isfinite(arr) & (arr > 0.0) & (arr <= POSITION_LIMIT)
+    if not ok.all():
+        raise ArgumentError("amplitudes", f"expected finite amplitudes > 0 and <= "
+                                          f"{POSITION_LIMIT:g} [rad or m] (as a simulation's "
+                                          f"initial deviation), got {arr[~ok][:3]}")
     return np.unique(arr), False
 
 

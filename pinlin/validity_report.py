@@ -250,7 +250,7 @@ def plot(result: Validity, folder: str | Path, stem: str) -> tuple[Path, Path]:
 def _histories(result: Validity) -> object:
     import matplotlib.pyplot as plt
 
-    cases = [c for c in result.cases if c.t is not None][:MAX_ROWS]
+    cases = [c for c in result.cases if c.t is not None and c.nonlinear is not None][:MAX_ROWS]
     rows = max(len(cases), 1)
     fig, axes = plt.subplots(rows, 2, figsize=(10, 2.3 * rows + 0.6), squeeze=False,
                              gridspec_kw={"width_ratios": [3, 2]})

@@ -254,10 +254,12 @@ def test_result_is_read_only(pendulum):
     ({"amplitudes": [0.1, math.nan]}, pinlin.ArgumentError, r"amplitudes.*finite"),
     ({"amplitudes": "0.1"}, pinlin.ArgumentError, r"amplitudes.*got text"),
     ({"amplitudes": [True]}, pinlin.ArgumentError, r"amplitudes.*got booleans"),
+    ({"amplitudes": [0.1, 2e6]}, pinlin.ArgumentError,
+     r"amplitudes.*<= 1e\+06 .*got \[2000000\.\]"),
     # solver tolerances whose noise (1e3 rtol + 1e2 atol / a) reaches the 1 % tolerance: the
     # "radius" would be the solver's (atol = 1e10 gave 0.001 rad for the pendulum's 0.159)
-    ({"atol": 1e10}, pinlin.ArgumentError, r"argument 'atol'.*use atol <= 1e-08"),
-    ({"rtol": 1e-3}, pinlin.ArgumentError, r"argument 'rtol'.*use rtol <= 1e-06"),
+    ({"atol": 1e10}, pinlin.ArgumentError, r"argument 'atol'.*or atol <= 1e-08"),
+    ({"rtol": 1e-3}, pinlin.ArgumentError, r"argument 'rtol'.*tolerance above 1 or rtol <= 1e-06"),
     ({"periods": 0}, pinlin.ArgumentError, r"periods.*> 0"),
     ({"time_constants": -1.0}, pinlin.ArgumentError, r"time_constants.*> 0"),
     ({"horizon": math.inf}, pinlin.ArgumentError, r"horizon.*finite number > 0 \[s\]"),
@@ -306,3 +308,42 @@ def test_graphs_and_linear_models_are_refused():
     with pytest.raises(pinlin.ArgumentError, match="got the LinearModel 'pendulum'.*pass the "
                                                    "scene"):
         pinlin.validity(pinlin.linearize("pendulum"))
+
+
+def test_cli_modes_are_the_mode_table_rows(capsys):
+    """--modes K is row K of the printed mode table (it was taken as an eigenvalue index:
+    --modes 0 and 1 both ran row 1, --modes 3 ran row 2); repeats and rows beyond the table
+    are refused, and the library's argument names become the command's options."""
+    from pinlin.cli import main
+
+    assert main(["validity", "double_pendulum", "--periods", "1", "--modes", "2",
+                 "--amplitudes", "0.001", "0.002", "0.004"]) == 0
+    out = capsys.readouterr().out
+    assert "mode 2 " in out and "mode 1 " not in out and "0 +- 7.04j" in out
+    for args, message in ((["--modes", "0"], "argument '--modes': no mode 0: the mode table "
+                                             "of 'double_pendulum' has rows 1 to 2"),
+                          (["--modes", "3"], "no mode 3"),
+                          (["--modes", "1", "1"], "argument '--modes': names a mode twice"),
+                          (["--tolerance", "1e-8"], "argument '--tolerance': the tolerance "
+                                                    "1e-08 is within the integration noise"),
+                          (["--amplitudes", "2e6"], "argument '--amplitudes': expected")):
+        assert main(["validity", "double_pendulum", *args]) == 2
+        captured = capsys.readouterr()
+        assert message in captured.err and captured.out == ""
+
+
+def test_plots_leave_out_cases_whose_simulation_failed(monkeypatch, tmp_path):
+    """A case whose every nonlinear run failed has no motion to draw (the plot raised
+    TypeError on it)."""
+    real = VM.simulate
+
+    def failing(system, t, dx0=None, **options):
+        if np.any(dx0):     # the unperturbed reference runs, every perturbed one fails
+            raise pinlin.ModelError("the loops do not close (planted)")
+        return real(system, t, dx0=dx0, **options)
+
+    monkeypatch.setattr(VM, "simulate", failing)
+    result = pinlin.validity("pendulum", [0.01, 0.02])
+    assert result.cases[0].nonlinear is None
+    paths = result.plot(tmp_path, "failed")
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in paths)
