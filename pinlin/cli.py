@@ -184,8 +184,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 def _cmd_export_mjcf(args: argparse.Namespace) -> int:
     from .files import check_file_target, write_text_atomic
-    from .linearization import operating_point
-    from .mjcf import build, check_time_step, to_xml
+    from .linearization import linearize, operating_point
+    from .mjcf import build, check_resolved, check_time_step, to_xml
     from .scene import Scene
 
     dt = check_time_step(args.dt, "--dt")
@@ -205,6 +205,7 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
         op, key = None, "; no keyframe: pinlin linearize says why the operating point is refused"
     else:
         key = "; keyframe 'operating_point' holds q0 and v0"
+        check_resolved(linearize(scene, allow_non_equilibrium=True), dt, "--dt")
     xml = to_xml(ms, scene.system, *((op.q, op.v) if op is not None else ()))
     write_text_atomic(out, xml)
     print(f"MJCF of '{scene.name}' written to {out} (nq = {ms.model.nq}, nv = {ms.model.nv}, "

@@ -155,6 +155,26 @@ def check_time_step(dt: object, argument: str = "dt") -> float:
     return value
 
 
+def check_resolved(model, dt: float, argument: str = "dt") -> None:
+    """Refuse a time step [s] that MuJoCo's semi-implicit Euler step cannot integrate stably
+    for the scene's fastest mode: an undamped oscillation of frequency w needs dt w < 2 (the
+    step's amplification matrix has |eigenvalues| = 1 only then), so dt |lambda| >= 2 for the
+    largest non-rigid |lambda| of the linear ``model`` (a :class:`pinlin.LinearModel` of the
+    scene) grows without bound.
+
+    Raises:
+        ArgumentError: naming ``argument``, the fastest |lambda| and the largest stable dt.
+    """
+    if model.n_states == 0:
+        return
+    fastest = float(np.abs(np.linalg.eigvals(model.A)).max())
+    if dt * fastest >= 2.0:
+        raise ArgumentError(argument, f"a time step of {dt:g} s cannot follow the fastest mode "
+                                      f"of '{model.name}' (|lambda| = {fastest:.4g} 1/s): "
+                                      f"MuJoCo's Euler step is unstable from dt |lambda| = 2; "
+                                      f"use dt < {2.0 / fastest:.3g} s")
+
+
 def _build(system, dt: float, impedance: float, visual: bool) -> MujocoScene:
     scene = system.scene
     if system.rotation is not None:
@@ -295,8 +315,9 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
     """The MJCF text of ``ms``; with ``q`` (and ``v``), a keyframe ``key`` holding pinlin's
     (q, v) in MuJoCo's coordinates: ``mj_resetDataKeyframe`` starts MuJoCo there (``ms``'s
     own spec is left as it was). MuJoCo's writer keeps 6 digits, which opens a held foot by
-    ~1e-6 m: the bodies' placements and inertias, pinlin's sites and the key are rewritten at
-    full precision. Generalized forces have no keyframe field: inputs that hold the posture
+    ~1e-6 m: the bodies' placements and inertias, pinlin's sites, the time step and gravity,
+    the joints' stiffness, spring reference, damping and armature, and the key are rewritten
+    at full precision. Generalized forces have no keyframe field: inputs that hold the posture
     still need applying. The text begins with :data:`MJCF_MARKER`.
 
     Raises:
@@ -325,6 +346,17 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
             xml = _exact_attributes(xml, "<inertial", {
                 "pos": m.body_ipos[i], "quat": m.body_iquat[i], "mass": m.body_mass[i:i + 1],
                 "diaginertia": m.body_inertia[i]}, inertial)
+    xml = _exact_attributes(xml, "<option", {"timestep": np.array([m.opt.timestep]),
+                                             "gravity": m.opt.gravity})
+    for i in range(m.njnt):      # the scene's effects: springs, damping, armature
+        if int(m.jnt_type[i]) not in (int(mujoco.mjtJoint.mjJNT_HINGE),
+                                      int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            continue
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, i)
+        dof, adr = m.jnt_dofadr[i], m.jnt_qposadr[i]
+        xml = _exact_attributes(xml, f'<joint name="{name}"', {
+            "stiffness": m.jnt_stiffness[i:i + 1], "springref": m.qpos_spring[adr:adr + 1],
+            "damping": m.dof_damping[dof:dof + 1], "armature": m.dof_armature[dof:dof + 1]})
     for i in range(m.nsite):     # the sites pinlin placed: loop and contact anchors
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i)
         xml = _exact_attributes(xml, f'<site name="{name}"',
@@ -353,11 +385,13 @@ def _exact_attributes(xml: str, head: str, values: dict[str, np.ndarray], at: in
     end = xml.index(">", start)
 
     def full(match: re.Match) -> str:
-        numbers = " ".join(repr(float(x)) for x in values[match.group(1)])
+        written = match.group(2).split()     # as many numbers as MuJoCo wrote (a 3-vector
+        exact = values[match.group(1)]       # whose trailing zeros it left out: the first)
+        numbers = " ".join(repr(float(x)) for x in exact[:max(len(written), 1)])
         return f'{match.group(1)}="{numbers}"'
 
     keys = "|".join(values)
-    element = re.sub(rf'\b({keys})="[^"]*"', full, xml[start:end])
+    element = re.sub(rf'\b({keys})="([^"]*)"', full, xml[start:end])
     return xml[:start] + element + xml[end:]
 
 

@@ -236,3 +236,56 @@ def test_exported_mjcf_starts_at_the_operating_point(name, tmp_path, capsys):
     for _ in range(2):       # the key goes into the text only: twice works, the spec keeps none
         assert '<key name="operating_point"' in mjcf.to_xml(ms, scene.system, q0)
     assert "<key" not in ms.spec.to_xml()
+
+
+def test_exported_effects_and_options_keep_every_digit(tmp_path, capsys):
+    """MuJoCo writes numbers with %g (6 digits): the time step, gravity and the joints'
+    stiffness, spring reference, damping and armature were rounded in the file (2.123456789
+    -> 2.12346) while validate compared the exact in-memory model. The file's compiled model
+    now equals the one pinlin builds, bit for bit."""
+    scene_file = tmp_path / "digits.toml"
+    scene_file.write_text(
+        f'name = "digits"\nurdf = "{URDF_DIR / "double_pendulum.urdf"}"\n'
+        '[effects]\ngravity = [0.0, 0.0, -9.80665123]\n'
+        'armature = { elbow = 0.0123456789 }\ndamping = { elbow = 0.123456789 }\n'
+        'springs = { shoulder = { stiffness = 2.123456789, rest = 0.123456789 } }\n'
+        '[inputs]\nactuated = "all"\n')
+    out = tmp_path / "digits.xml"
+    assert main(["export-mjcf", str(scene_file), "-o", str(out), "--dt",
+                 "0.0012345678901"]) == 0
+    capsys.readouterr()
+    m = mujoco.MjModel.from_xml_path(str(out))
+    ms = mjcf.build(pinlin.Scene.load(scene_file).system, dt=0.0012345678901)
+    assert m.opt.timestep == 0.0012345678901
+    np.testing.assert_array_equal(m.opt.gravity, [0.0, 0.0, -9.80665123])
+    for key in ("jnt_stiffness", "qpos_spring", "dof_damping", "dof_armature"):
+        np.testing.assert_array_equal(getattr(m, key), getattr(ms.model, key))
+    assert m.jnt_stiffness[0] == 2.123456789 and m.dof_damping[1] == 0.123456789
+
+
+def test_time_step_must_resolve_the_fastest_mode(tmp_path, capsys):
+    """MuJoCo's (semi-implicit) Euler step integrates an oscillation of frequency w stably only
+    for dt w < 2: checked here on MuJoCo itself (the double pendulum's fastest mode, |lambda|
+    = 7.04 1/s: bounded at 0.9 x 2/|lambda|, blown up at 1.1 x), and export-mjcf refuses a dt
+    beyond it (--dt 1e300 wrote a file whose first step gave qpos = -inf)."""
+    scene = pinlin.Scene.resolve("double_pendulum")
+    fastest = float(np.abs(np.linalg.eigvals(pinlin.linearize(scene).A)).max())
+    limit = 2.0 / fastest
+    peaks = []
+    for factor in (0.9, 1.1):
+        ms = mjcf.build(scene.system, dt=factor * limit)
+        mujoco.mj_resetData(ms.model, ms.data)
+        ms.data.qpos[:] = [1e-3, -1e-3]
+        peak = 0.0
+        for _ in range(500):
+            mujoco.mj_step(ms.model, ms.data)
+            peak = max(peak, float(np.abs(ms.data.qpos).max()))
+        peaks.append(peak)
+    assert peaks[0] < 1e-2 and peaks[1] > 1.0
+    out = tmp_path / "dp.xml"
+    for dt in (1.1 * limit, 1e300):
+        assert main(["export-mjcf", "double_pendulum", "-o", str(out), "--dt", repr(dt)]) == 2
+        err = capsys.readouterr().err
+        assert f"use dt < {limit:.3g} s" in err and not out.exists()
+    assert main(["export-mjcf", "double_pendulum", "-o", str(out), "--dt",
+                 repr(0.9 * limit)]) == 0
