@@ -314,7 +314,9 @@ def report_html(scene, *, model=None, modes: ModalAnalysis | None = None,
     note = (f"<p class='note'>{undrawn} mode(s) of the table are not drawn (rigid or "
             f"constraint modes beyond the first {max_modes}, or not assemblable).</p>"
             if undrawn else "")
-    payload = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    # No "<" in the script element at all: "</script" would close it and "<!--" open a
+    # comment that swallows the page (HTML's script data states); JSON reads \u003c as "<".
+    payload = json.dumps(data, separators=(",", ":")).replace("<", "\\u003c")
     title = f"pinlin report: {model.name}"
     return f"""{MARKER}
 <html lang="en"><head><meta charset="utf-8">

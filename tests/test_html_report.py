@@ -199,3 +199,18 @@ def test_report_in_a_headless_browser(browser, five_bar):
     shot = browser.get_screenshot_as_png()
     assert shot.startswith(b"\x89PNG")
     assert re.search(r"five_bar", browser.page_source)
+
+
+def test_scene_name_cannot_break_out_of_the_data_script():
+    """A scene named '<!--<script>' (or '</script>') must not change how the page parses:
+    the data script holds no '<' at all and its JSON reads the name back exactly."""
+    import dataclasses
+
+    name = "<!--<script></script>"
+    scene = dataclasses.replace(pinlin.Scene.resolve("pendulum"), name=name)
+    html = report_html(scene, include_response=False)
+    start = html.index('<script type="application/json" id="pinlin-data">')
+    body = html[start:].split(">", 1)[1]
+    payload = body[:body.index("</script>")]
+    assert "<" not in payload
+    assert json.loads(payload)["name"] == name
