@@ -333,3 +333,22 @@ def test_graph_command_prints_tree_and_matrices(capfd):
     out = capfd.readouterr().out
     assert "normal tree: Vs, C2" in out and "dependent energy storage: C1" in out
     assert "standard form" in out and "E =" not in out
+
+
+@pytest.mark.parametrize("shunt", [1e-6, 1e-12, 1e-17])
+def test_small_resistance_beside_a_large_one_keeps_its_digits(shunt):
+    """Vs - R3 (1 ohm) - node b, with L (1 H) and a shunt R4 from b to ground: by hand
+    (node b), v_b = R4 / (R3 + R4) (Vs - R3 f_L), so A = -R4/(1 + R4), B = R4/(1 + R4) and
+    v:L = v:R4 (one node pair). With R3 in the normal tree, v_L = Vs - v_R3 cancelled: B was
+    off by 2e-5 at R4 = 1e-12 and 0 at 1e-17. Resistances now enter the tree smallest first."""
+    g = Graph("shunt")
+    g.add_branch("Vs", "across_source", "a", "g")
+    g.add_branch("R3", "D", "a", "b", 1.0)
+    g.add_branch("L", "T", "b", "g", 1.0)
+    g.add_branch("R4", "D", "b", "g", shunt)
+    m = g.linearize(outputs=["f:L", "v:L", "v:R4"])
+    exact = shunt / (1.0 + shunt)
+    np.testing.assert_allclose(m.A, [[-exact]], rtol=4 * np.finfo(float).eps)
+    np.testing.assert_allclose(m.B, [[exact]], rtol=4 * np.finfo(float).eps)
+    np.testing.assert_array_equal(m.C[1], m.C[2])
+    np.testing.assert_array_equal(m.D[1], m.D[2])

@@ -1,15 +1,17 @@
 """The normal tree of a linear graph (Rowell, steps 1-6) and its loop matrix.
 
 Across sources, then A-type, D-type and T-type elements enter the tree greedily (file order
-within a type) while they close no loop; an across source that cannot enter means a loop of
-across sources, a through source that must enter means a cut-set of through sources: both are
-errors. A-type links and T-type tree branches are dependent energy storage. Primary variables
-are the across variables of tree branches and the through variables of links; the loop matrix
-Bf (v_links = Bf v_tree, :func:`loop_matrix`) gives the secondary ones.
+within a type; D-type by increasing resistance, :func:`_tree_rank`) while they close no loop;
+an across source that cannot enter means a loop of across sources, a through source that must
+enter means a cut-set of through sources: both are errors. A-type links and T-type tree
+branches are dependent energy storage. Primary variables are the across variables of tree
+branches and the through variables of links; the loop matrix Bf (v_links = Bf v_tree,
+:func:`loop_matrix`) gives the secondary ones.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -79,8 +81,7 @@ def find_normal_tree(graph: Graph) -> tuple[NormalTree, list[bool]]:
         raise GraphError(graph.source, "branches", "the graph has no branches")
     nodes = _check_connected(graph)
     uf = _UnionFind(nodes)
-    order = sorted(range(len(graph.branches)),
-                   key=lambda k: (_PRIORITY[graph.branches[k].type], k))
+    order = sorted(range(len(graph.branches)), key=lambda k: _tree_rank(graph.branches[k], k))
     in_tree = [False] * len(graph.branches)
     for k in order:
         b = graph.branches[k]
@@ -108,6 +109,20 @@ def find_normal_tree(graph: Graph) -> tuple[NormalTree, list[bool]]:
         elif b.type == "T":
             (dependent if in_tree[k] else states).append(b.name if in_tree[k] else through)
     return NormalTree(tree, links, states, dependent, primary, secondary, len(states)), in_tree
+
+
+def _tree_rank(b: Branch, k: int) -> tuple[int, float, int]:
+    """Sort key of the greedy tree: type priority, then, among resistances, the smallest first.
+
+    A link's across variable is the sum of tree across variables around its loop. With a large
+    resistance in the tree beside a small one among the links, that sum cancels: a 1 ohm
+    resistor in the tree and 1e-17 ohm across the inductor it feeds leave v_L = Vs - v_R,
+    both ~Vs, and lose every digit of v_L ~ 1e-17 Vs. With the small resistances in the tree
+    (its across variables small, the large ones' through variables taken as links) no sum
+    cancels: the maximum-conductance tree. Nonlinear ones (value None here) follow."""
+    if b.type == "D":
+        return _PRIORITY["D"], math.inf if b.value is None else float(b.value), k
+    return _PRIORITY[b.type], 0.0, k
 
 
 def loop_matrix(branches: Sequence[Branch], in_tree: list[bool]) -> np.ndarray:
@@ -148,17 +163,23 @@ def _check_connected(graph: Graph) -> list[str]:
 
 
 def _tree_path(adj, start: str, goal: str) -> list[tuple[int, float]]:
-    """Tree branches (column, sign) along the unique tree path from ``start`` to ``goal``."""
-    stack = [(start, None, [])]
-    seen = {start}
+    """Tree branches (column, sign) along the unique tree path from ``start`` to ``goal`` (a
+    depth-first search that records how it reached each node, then walks back from the goal:
+    linear in the tree's size; copying the path at every step made large graphs cubic)."""
+    came: dict[str, tuple[str, int, float] | None] = {start: None}
+    stack = [start]
     while stack:
-        node, _, path = stack.pop()
+        node = stack.pop()
         if node == goal:
-            return path
+            path = []
+            while came[node] is not None:
+                node, col, sign = came[node]
+                path.append((col, sign))
+            return path[::-1]
         for nxt, col, sign in adj.get(node, []):
-            if nxt not in seen:
-                seen.add(nxt)
-                stack.append((nxt, col, path + [(col, sign)]))
+            if nxt not in came:
+                came[nxt] = (node, col, sign)
+                stack.append(nxt)
     raise PinlinError(f"no tree path from {start} to {goal}")
 
 
