@@ -556,3 +556,20 @@ def test_path_like_giving_bytes_is_an_argument_error():
     assert isinstance(BytesPath(), os.PathLike)
     with pytest.raises(ArgumentError, match="argument 'path'"):
         Graph.load(BytesPath())
+
+
+def test_check_applies_the_domain_rules_to_an_edited_graph():
+    """Graph.check() (run by linearize) refuses what add_branch refuses, also after the
+    graph's domain or branch list was edited directly."""
+    g = Graph("heat", "thermal")
+    g.add_branch("Q", "through_source", "a", "g")
+    g.add_branch("C", "A", "a", "g", 1.0)
+    g.branches.append(Branch("L", "T", "a", "g", 1.0))
+    with pytest.raises(GraphError, match="thermal domain has no T-type"):
+        g.linearize()
+    h = Graph("rc")
+    h.add_branch("V", "across_source", "a", "g")
+    h.add_branch("R", "D", "a", "g", 1.0)
+    h.domain = "nope"
+    with pytest.raises(ArgumentError, match="argument 'domain': expected one of"):
+        h.linearize()

@@ -119,12 +119,6 @@ class Graph:
         """
         branch = self._make_branch(name, type, from_, to, value, relation, input, field)
         fld = field or f"branches.{name}"
-        if type == "T" and self.domain == "thermal":
-            raise GraphError(self.source, f"{fld}.type", "the thermal domain has no T-type "
-                                                         "(inductance-like) element: heat flow "
-                                                         "stores no energy (Rowell); use A "
-                                                         "(thermal capacitance) and D (thermal "
-                                                         "resistance)")
         if len(self.branches) >= MAX_BRANCHES:
             raise GraphError(self.source, "branches", f"more than {MAX_BRANCHES} branches (the "
                                                       "dense matrix method's time grows as the "
@@ -150,6 +144,12 @@ class Graph:
         if type not in TYPES:
             raise GraphError(self.source, f"{fld}.type", f"unknown element type {type!r}; "
                                                          f"expected one of {', '.join(TYPES)}")
+        if type == "T" and self.domain == "thermal":
+            raise GraphError(self.source, f"{fld}.type", "the thermal domain has no T-type "
+                                                         "(inductance-like) element: heat flow "
+                                                         "stores no energy (Rowell); use A "
+                                                         "(thermal capacitance) and D (thermal "
+                                                         "resistance)")
         if from_ == to:
             raise GraphError(self.source, f"{fld}.to", f"branch '{name}' starts and ends at "
                                                        f"node '{to}'")
@@ -183,12 +183,17 @@ class Graph:
                       relation, inp)
 
     def check(self) -> None:
-        """Check every branch again (for graphs whose ``branches`` list was edited directly).
+        """Check the domain and every branch again (for graphs whose ``domain`` or ``branches``
+        list was edited directly).
 
         Raises:
-            ArgumentError: an entry that is not a :class:`Branch`, or holds wrong types.
+            ArgumentError: an unknown domain; an entry that is not a :class:`Branch`, or holds
+                wrong types.
             GraphError: a duplicate name, too many branches, or a bad value.
         """
+        if not isinstance(self.domain, str) or self.domain not in DOMAINS:
+            raise ArgumentError("domain", f"expected one of {', '.join(DOMAINS)}, got "
+                                          f"{show(self.domain)}")
         if not isinstance(self.branches, list):
             raise ArgumentError("branches", f"expected a list of Branch, got {show(self.branches)}")
         if len(self.branches) > MAX_BRANCHES:
