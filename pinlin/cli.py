@@ -361,6 +361,9 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:  # output piped into head & co.: stop quietly
         sys.stderr.close()
         return 0
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT
+        print("pinlin: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

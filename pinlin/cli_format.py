@@ -61,6 +61,9 @@ def file_name(option: str) -> Callable[[str], str]:
     def check(text: str) -> str:
         if not text.strip():
             raise ArgumentError(option, "needs a file name, got an empty string")
+        if text.endswith(("/", os.sep)):   # Path() would drop the slash and write a file
+            raise ArgumentError(option, f"needs a file name, got {text!r}, which names a "
+                                        "folder")
         return text
 
     return check

@@ -163,7 +163,8 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
 
 
 def _times(args: argparse.Namespace) -> np.ndarray:
-    """The time grid 0, dt, ..., t_end [s] of --t-end and --dt."""
+    """The time grid 0, dt, 2 dt, ..., t_end [s] of --t-end and --dt (t_end itself last, also
+    where --dt does not divide it)."""
     if not (np.isfinite(args.t_end) and args.t_end > 0):
         raise ArgumentError("--t-end", f"expected a duration > 0 [s], got {args.t_end:g}")
     if not (np.isfinite(args.dt) and 0 < args.dt <= args.t_end):
@@ -173,8 +174,10 @@ def _times(args: argparse.Namespace) -> np.ndarray:
     if not count <= 1_000_000:  # a float: --t-end 1e300 / --dt 0.01 overflows no int
         raise ArgumentError("--dt", f"--t-end / --dt gives {count:.3g} output times; at most "
                                     "1000000 (raise --dt or shorten --t-end)")
-    n = int(count)
-    return np.arange(n) * args.dt
+    grid = np.arange(int(count)) * args.dt
+    if args.t_end - grid[-1] > 1e-9 * args.dt:
+        grid = np.append(grid, args.t_end)
+    return grid
 
 
 def _assignments(values: list[str] | None, names: tuple[str, ...], option: str,

@@ -32,6 +32,9 @@ def _cmd_modes(args: argparse.Namespace) -> int:
         raise ArgumentError("--amplitude", f"expected an amplitude > 0 and <= "
                                            f"{MAX_AMPLITUDE:g} [rad or m], got "
                                            f"{args.amplitude:g}")
+    if args.amplitude is not None and png is None and gif is None:
+        raise ArgumentError("--amplitude", "sets the drawn amplitude: give --plot FILE.png or "
+                                           "--gif FILE.gif as well")
     if args.mode is not None and png is None and gif is None:
         raise ArgumentError("--mode", "chooses the modes to draw: give --plot FILE.png or "
                                       "--gif FILE.gif as well")

@@ -318,6 +318,9 @@ def _tolerance(name: str, value: object) -> float:
         raise ArgumentError(name, f"{value:g} is below {RTOL_MIN:.3g} (100 x machine "
                                   f"epsilon), the smallest relative tolerance the solvers "
                                   f"honour")
+    if name == "rtol" and value >= 1.0:
+        raise ArgumentError(name, f"{value:g} allows errors as large as the state itself; a "
+                                  "relative tolerance is below 1 (the default is 1e-10)")
     return float(value)
 
 

@@ -123,6 +123,13 @@ BAD = {
                         "argument '--x0'"),
     "rtol_below_eps": (["simulate", "pendulum", "--t-end", "1", "--rtol", "1e-30"],
                        "argument '--rtol': 1e-30 is below 2.22e-14"),
+    "rtol_one": (["simulate", "pendulum", "--t-end", "1", "--rtol", "1"],
+                 "argument '--rtol': 1 allows errors as large as the state itself"),
+    "out_names_a_folder": (["simulate", "pendulum", "--t-end", "1", "--out", "h.csv/"],
+                           "argument '--out': needs a file name, got 'h.csv/', which names a "
+                           "folder"),
+    "modes_amplitude_alone": (["modes", "pendulum", "--amplitude", "0.3"],
+                              "argument '--amplitude': sets the drawn amplitude"),
     "validity_tolerance": (["validity", "pendulum", "--tolerance", "-1"], "tolerance"),
     "validity_out_dir_file": (["validity", "pendulum", "--out-dir", __file__],
                               "it is a file, not a folder"),
@@ -153,3 +160,24 @@ def test_bad_trajectory_runs_print_nothing_but_the_error(case, capfd, tmp_path):
                          str(tmp_path / "o.npz"), "--no-progress", *argv)
     assert code == 2 and err.count("\n") == 1 and words in err, err
     assert out == "" and not (tmp_path / "o.npz").exists()
+
+
+def test_time_grid_ends_at_t_end(capfd, tmp_path):
+    """--t-end 1 --dt 0.3 samples 0, 0.3, 0.6, 0.9 and 1 (it stopped at 0.9 s)."""
+    out = tmp_path / "h.csv"
+    code, _, _ = run(capfd, "simulate", "pendulum", "--t-end", "1", "--dt", "0.3", "--out",
+                     str(out))
+    assert code == 0
+    t = [float(line.split(",")[0]) for line in out.read_text().splitlines()[1:]]
+    np.testing.assert_allclose(t, [0.0, 0.3, 0.6, 0.9, 1.0], rtol=0, atol=1e-15)
+
+
+def test_ctrl_c_prints_one_line_and_exits_130(capfd, monkeypatch):
+    from pinlin import cli_motion
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_motion, "_cmd_simulate", interrupted)
+    code, out, err = run(capfd, "simulate", "pendulum", "--t-end", "1")
+    assert code == 130 and err == "pinlin: interrupted\n" and out == ""
