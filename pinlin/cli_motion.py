@@ -403,16 +403,20 @@ def _cmd_response(args: argparse.Namespace) -> int:
 
 
 def _cmd_validity(args: argparse.Namespace) -> int:
-    from .files import check_folder_target, make_folder
+    from .files import check_file_target, check_folder_target, make_folder
     from .linearization import linearize
     from .modal import modal
     from .scene import Scene
     from .validity import validity
+    from .validity_report import plot_paths
 
     folder = None
     if args.out_dir is not None:
         folder = check_folder_target(folder_name(args.out_dir, "--out-dir"), "--out-dir")
     scene = Scene.resolve(args.target)
+    if folder is not None and folder.is_dir():    # a file there is refused before the run
+        for path in plot_paths(folder, scene.name):
+            check_file_target(path)
     modes = None
     if args.modes is not None:    # rows of the mode table, numbered from 1 as printed
         modes = mode_rows(modal(linearize(scene)), args.modes, "--modes")

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import ArgumentError
-from .files import PNG_METADATA, make_folder, write_bytes_atomic
+from .files import PNG_METADATA, check_file_target, make_folder, write_bytes_atomic
 from .linear_model import LinearModel
 from .modal import ModalAnalysis
 
@@ -235,13 +235,20 @@ def _save(fig: object, path: Path) -> None:
     write_bytes_atomic(path, buffer.getvalue())
 
 
+def plot_paths(folder: Path, stem: str) -> tuple[Path, Path]:
+    """The two figures :func:`plot` writes into ``folder``."""
+    return folder / f"{stem}_histories.png", folder / f"{stem}_errors.png"
+
+
 def plot(result: Validity, folder: str | Path, stem: str) -> tuple[Path, Path]:
     """Write the two figures of ``result`` into ``folder`` (created if needed); their paths."""
     import matplotlib
 
     matplotlib.use("Agg")
     folder = make_folder(folder)
-    paths = (folder / f"{stem}_histories.png", folder / f"{stem}_errors.png")
+    paths = plot_paths(folder, stem)
+    for path in paths:      # both refused before either is written
+        check_file_target(path)
     _save(_histories(result), paths[0])
     _save(_errors(result), paths[1])
     return paths

@@ -181,3 +181,16 @@ def test_ctrl_c_prints_one_line_and_exits_130(capfd, monkeypatch):
     monkeypatch.setattr(cli_motion, "_cmd_simulate", interrupted)
     code, out, err = run(capfd, "simulate", "pendulum", "--t-end", "1")
     assert code == 130 and err == "pinlin: interrupted\n" and out == ""
+
+
+def test_validity_refuses_a_foreign_plot_before_the_run(capfd, tmp_path):
+    """A picture of the user's own where validity would write its errors plot: refused before
+    anything is simulated, printed or written (the table was printed and the histories plot
+    written first)."""
+    from PIL import Image
+
+    Image.new("RGB", (4, 4)).save(tmp_path / "pendulum_errors.png")
+    code, out, err = run(capfd, "validity", "pendulum", "--periods", "1", "--out-dir",
+                         str(tmp_path))
+    assert code == 2 and out == "" and "pendulum_errors.png" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pendulum_errors.png"]
