@@ -231,7 +231,7 @@ def _check_history_out(path: str | None, option: str = "--out") -> Path | None:
     if out.suffix not in HISTORY_FORMATS:
         raise ModelFileError(out, f"unknown format '{out.suffix}' for time histories; "
                                   f"expected {' or '.join(HISTORY_FORMATS)}")
-    check_file_target(out)
+    check_file_target(out, kind="history")
     return out
 
 

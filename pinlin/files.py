@@ -92,8 +92,9 @@ _MODEL_ARRAYS = ("A", "B", "C", "D", "E", "F", "G", "M", "C_damp", "K", "Bu", "f
                  "u", "a", "y", "t", "lam", "meta", "state_names", "input_names", "output_names")
 #: (members every such archive has, members it may have): a model or trajectory model, a
 #: simulation history. An archive with any other member is the user's, whatever it shares.
-_NPZ_MEMBERS = (({"A.npy", "meta.npy", "state_names.npy"}, {f"{k}.npy" for k in _MODEL_ARRAYS}),
-                ({"t.npy", "names.npy", "values.npy"}, {"t.npy", "names.npy", "values.npy"}))
+_NPZ_MEMBERS = {
+    "model": ({"A.npy", "meta.npy", "state_names.npy"}, {f"{k}.npy" for k in _MODEL_ARRAYS}),
+    "history": ({"t.npy", "names.npy", "values.npy"}, {"t.npy", "names.npy", "values.npy"})}
 _JSON_START = b'{\n "state_names"'
 
 
@@ -108,19 +109,22 @@ _HTML_TITLE = b"<title>pinlin "
 _HEAD = 8192
 
 
-def _pinlin_content(target: Path, suffix: str) -> bool:
+def _pinlin_content(target: Path, suffix: str, kind: str | None = None) -> bool:
     """Whether ``target`` (a file of the kind ``suffix`` names) holds what pinlin writes there:
     pinlin's marker in a PNG, GIF or HTML head, a CSV header of t and named signals
     (``q:...``), the arrays of a model, trajectory or history in an .npz or .mat (read from
     the archive's listing, not the data), a model's first key in .json; other kinds are told by
-    their head alone."""
+    their head alone. ``kind`` ("model": a model or trajectory model, "history": a time
+    history) narrows an .npz to what the caller writes: a history does not replace a saved
+    model, nor a model a history."""
     import zipfile
 
     try:
         if suffix == ".npz":
             with zipfile.ZipFile(target) as archive:
                 names = set(archive.namelist())
-            return any(required <= names <= allowed for required, allowed in _NPZ_MEMBERS)
+            kinds = _NPZ_MEMBERS.values() if kind is None else (_NPZ_MEMBERS[kind],)
+            return any(required <= names <= allowed for required, allowed in kinds)
         if suffix == ".mat":
             from scipy.io import whosmat
 
@@ -148,7 +152,7 @@ def _pinlin_content(target: Path, suffix: str) -> bool:
     return True
 
 
-def check_replaceable(path: Path, target: Path) -> None:
+def check_replaceable(path: Path, target: Path, kind: str | None = None) -> None:
     """Refuse to replace an existing non-empty ``target`` (``path``, links followed) that does
     not begin as the files pinlin writes with its suffix begin (:data:`SIGNATURES`), or, for
     the data formats, does not hold pinlin's own names (:func:`_pinlin_content`)."""
@@ -164,15 +168,16 @@ def check_replaceable(path: Path, target: Path) -> None:
     except OSError as exc:
         raise ModelFileError(path, f"cannot read it: {exc.strerror or exc}") from None
     if start and not (any(start.startswith(h) for h in heads)
-                      and _pinlin_content(target, path.suffix.lower())):
+                      and _pinlin_content(target, path.suffix.lower(), kind)):
         where = f" (a link to '{target}')" if target != path else ""
         raise ModelFileError(path, f"exists{where} and is not a {path.suffix} file of the "
                                    "kind pinlin writes; pinlin does not replace it: move it "
                                    "or choose another name")
 
 
-def check_file_target(path: str | Path, what: str = "write") -> Path:
-    """Refuse a file path that cannot be written, before any work; returns it as a Path.
+def check_file_target(path: str | Path, what: str = "write", kind: str | None = None) -> Path:
+    """Refuse a file path that cannot be written, before any work; returns it as a Path
+    (``kind``: what the caller writes, for :func:`check_replaceable`).
 
     Raises:
         ArgumentError: ``path`` is not a path.
@@ -184,7 +189,7 @@ def check_file_target(path: str | Path, what: str = "write") -> Path:
     target = _follow_link(path)
     if target.is_dir():
         raise ModelFileError(path, f"cannot {what}: it is a folder, expected a file name")
-    check_replaceable(path, target)
+    check_replaceable(path, target, kind)
     folder = _folder_of(target)
     if not folder.is_dir():
         blocker = _existing_non_folder(folder)

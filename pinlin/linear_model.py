@@ -413,7 +413,7 @@ class LinearModel:
         """
         path = as_path(path)
         fmt = model_format(path)
-        check_file_target(path)
+        check_file_target(path, kind="model")
         write_bytes_atomic(path, self._serialized(path, fmt))
         return path
 

@@ -238,7 +238,7 @@ def save_trajectory_model(model: Any, path: str | Path) -> Path:
         found = f"'{path.suffix}'" if path.suffix else "no suffix"
         raise ModelFileError(path, f"unknown trajectory model format ({found}); expected "
                                    f"{' or '.join(MODEL_FORMATS)}")
-    check_file_target(path)
+    check_file_target(path, kind="model")
     arrays = {k: _stored(getattr(model, k)) for k in _STACKS}
     for key in _OPTIONAL:
         if getattr(model, key, None) is not None:

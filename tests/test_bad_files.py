@@ -829,3 +829,20 @@ def test_files_of_the_same_format_or_no_file_at_all_are_kept(kind, capfd, tmp_pa
         assert snapshot(tmp_path) == before
     else:
         assert stat.S_ISFIFO(os.stat(target).st_mode)
+
+
+def test_a_history_and_a_model_never_replace_each_other(capfd, tmp_path, pendulum):
+    """Both are pinlin's .npz files, of different kinds: a simulation's --out over a saved
+    model destroyed the model (and a model over a history the history)."""
+    model_file, history_file = tmp_path / "model.npz", tmp_path / "history.npz"
+    pendulum.save(model_file)
+    assert main(["simulate", "pendulum", "--t-end", "0.1", "--out", str(history_file)]) == 0
+    before = model_file.read_bytes(), history_file.read_bytes()
+    capfd.readouterr()
+    assert main(["simulate", "pendulum", "--t-end", "0.1", "--out", str(model_file)]) == 2
+    assert "model.npz: exists and is not a .npz file of the kind" in capfd.readouterr().err
+    with pytest.raises(pinlin.ModelFileError, match="not a .npz file of the kind"):
+        pendulum.save(history_file)
+    assert (model_file.read_bytes(), history_file.read_bytes()) == before
+    pendulum.save(model_file)      # each kind still replaces its own
+    assert main(["simulate", "pendulum", "--t-end", "0.1", "--out", str(history_file)]) == 0
