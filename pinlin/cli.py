@@ -108,6 +108,8 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
                       allow_ill_conditioned=args.allow_ill_conditioned,
                       basis=args.basis, alpha=args.alpha, mu=args.mu, omega=args.omega)
     modes = modal(model, method=args.method)    # refuses before anything is printed
+    if out is not None:     # the file first: a failed write prints one line, not the table
+        model.save(out)
     print_operating_point(model, scene.system)
     print()
     print(modes)
@@ -119,7 +121,6 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
         for key, (rows, columns) in names.items():
             print(f"\n{format_matrix(key, getattr(model, key), rows, columns)}")
     if out is not None:
-        model.save(out)
         print(f"\nmodel written to {out}")
     return 0
 

@@ -304,27 +304,30 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
     n = len(sim.independent_names) // 2      # z: the linear model's states
     effects = constrained_effects(scene.system)
-    print(f"simulated '{scene.name}' (nonlinear, the scene's effects: "
-          f"{', '.join(effects) or 'none'}) over {t[-1]:g} s: "
-          f"{sim.info.get('method')}, {plural(int(sim.info.get('nfev', 0)), 'evaluation')}")
+    lines = [f"simulated '{scene.name}' (nonlinear, the scene's effects: "
+             f"{', '.join(effects) or 'none'}) over {t[-1]:g} s: "
+             f"{sim.info.get('method')}, {plural(int(sim.info.get('nfev', 0)), 'evaluation')}"]
     if sim.drift is not None and sim.drift.size and np.any(sim.drift):
-        print(f"constraint drift: |Phi| <= {sim.drift[:, 0].max():.1e}, |Phi_q v| <= "
-              f"{sim.drift[:, 1].max():.1e}")
+        lines.append(f"constraint drift: |Phi| <= {sim.drift[:, 0].max():.1e}, |Phi_q v| <= "
+                     f"{sim.drift[:, 1].max():.1e}")
     if sim.energy is not None:
-        print(f"energy change: {np.abs(sim.energy - sim.energy[0]).max():.3e} J")
+        lines.append(f"energy change: {np.abs(sim.energy - sim.energy[0]).max():.3e} J")
     final = ", ".join(f"{name} = {value:.6g}" for name, value
                       in zip(sim.independent_names[:n], sim.z[-1, :n], strict=True))
-    print(f"final deviation: {final or 'none (no states: the constraints hold everything)'}")
+    lines.append(f"final deviation: "
+                 f"{final or 'none (no states: the constraints hold everything)'}")
     states = {name: sim.z[:, k] for k, name in enumerate(sim.independent_names)}
+    # The files first: a failed write prints one line, not the result before it.
     if out is not None:
         outputs = {f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)}
         _write_history(out, sim.t, {**states, **outputs})
-        print(f"time histories written to {out}")
+        lines.append(f"time histories written to {out}")
     if plot is not None:
         _plot_histories(plot, f"{scene.name}: nonlinear simulation", sim.t,
                         [(name, sim.t, sim.z[:, k], "-")
                          for k, name in enumerate(sim.independent_names[:n])])
-        print(f"plot written to {plot}")
+        lines.append(f"plot written to {plot}")
+    print("\n".join(lines))
     return 0
 
 
@@ -370,13 +373,13 @@ def _cmd_response(args: argparse.Namespace) -> int:
         res = response(model, t, x0=x0, u=u, method=args.method)
     n = len(model.state_names) // 2
     if n == 0:
-        print(f"linear response of '{model.name}': the model has no states (its constraints "
-              f"hold every coordinate), nothing moves")
+        lines = [f"linear response of '{model.name}': the model has no states (its "
+                 f"constraints hold every coordinate), nothing moves"]
     else:
         peak = np.abs(res.x[:, :n]).max(axis=0)
         worst = int(np.argmax(peak))
-        print(f"linear response of '{model.name}' ({args.method}) over {t[-1]:g} s: largest "
-              f"excursion {peak[worst]:.6g} on {model.state_names[worst]}")
+        lines = [f"linear response of '{model.name}' ({args.method}) over {t[-1]:g} s: "
+                 f"largest excursion {peak[worst]:.6g} on {model.state_names[worst]}"]
     curves = [(name, res.t, res.x[:, k], "-") for k, name in enumerate(model.state_names[:n])]
     columns = {name: res.x[:, k] for k, name in enumerate(model.state_names)}
     if args.nonlinear:
@@ -385,20 +388,22 @@ def _cmd_response(args: argparse.Namespace) -> int:
         sim = simulate(scene, t, dx0=x0)
         diff = np.abs(sim.z - res.x).max(initial=0.0)
         scale = max(float(np.abs(res.x).max(initial=0.0)), np.finfo(float).tiny)
-        print(f"nonlinear simulation from the same state: max |x_nl - x_lin| = {diff:.3e} "
-              f"({diff / scale:.2e} of the largest linear value)")
+        lines.append(f"nonlinear simulation from the same state: max |x_nl - x_lin| = "
+                     f"{diff:.3e} ({diff / scale:.2e} of the largest linear value)")
         curves += [(f"{name} (nonlinear)", sim.t, sim.z[:, k], "--")
                    for k, name in enumerate(sim.independent_names[:n])]
         columns.update({f"nl:{name}": sim.z[:, k]
                         for k, name in enumerate(sim.independent_names)})
+    # The files first: a failed write prints one line, not the result before it.
     if out is not None:
         _write_history(out, res.t, columns)
-        print(f"time histories written to {out}")
+        lines.append(f"time histories written to {out}")
     if plot is not None:
         _plot_histories(plot, f"{model.name}: linear response"
                         + (" and nonlinear simulation" if args.nonlinear else ""), res.t,
                         curves)
-        print(f"plot written to {plot}")
+        lines.append(f"plot written to {plot}")
+    print("\n".join(lines))
     return 0
 
 

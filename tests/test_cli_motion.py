@@ -194,3 +194,25 @@ def test_validity_refuses_a_foreign_plot_before_the_run(capfd, tmp_path):
                          str(tmp_path))
     assert code == 2 and out == "" and "pendulum_errors.png" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pendulum_errors.png"]
+
+
+@pytest.mark.parametrize("argv", [
+    ["linearize", "pendulum", "--out", "OUT.npz"],
+    ["simulate", "pendulum", "--t-end", "0.1", "--out", "OUT.csv"],
+    ["response", "pendulum", "--t-end", "0.1", "--x0", "hinge=0.1", "--out", "OUT.csv"]])
+def test_a_failed_write_prints_nothing_but_the_error(argv, capfd, tmp_path, monkeypatch):
+    """A disk that is full (or a file size limit) fails the write: one line on stderr and
+    nothing on stdout (the operating point and mode table, or the simulation's summary, were
+    printed before the write)."""
+    from pinlin import files
+    from pinlin.exceptions import ModelFileError
+
+    def full(path, data):
+        raise ModelFileError(path, "cannot write: File too large")
+
+    monkeypatch.setattr(files, "write_text_atomic", full)
+    monkeypatch.setattr(files, "write_bytes_atomic", full)
+    monkeypatch.setattr(pinlin.LinearModel, "save", lambda self, path: full(path, None))
+    argv = [str(tmp_path / a) if a.startswith("OUT") else a for a in argv]
+    code, out, err = run(capfd, *argv)
+    assert code == 2 and out == "" and "File too large" in err and err.count("\n") == 1
