@@ -440,7 +440,15 @@ def _op_from_dict(d: Mapping[str, Any]) -> OperatingPoint:
     if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) \
             or not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"'tolerance' must be a number >= 0, got {tolerance!r:.60}")
-    return OperatingPoint(q=arr("q", True), v=arr("v"), u=arr("u"), a=arr("a"),
-                          residual=arr("residual"), equilibrium=equilibrium,
-                          tolerance=float(tolerance), y=arr("y"), lam=arr("lam"),
-                          notes=strings("notes"), lam_names=strings("lam_names"))
+    lam, lam_names = arr("lam"), strings("lam_names")
+    if len(lam_names) != (0 if lam is None else lam.size):
+        raise ValueError(f"'lam_names' must name each of the {0 if lam is None else lam.size} "
+                         f"entries of 'lam', got {len(lam_names)} names")
+    v, u, a, residual = arr("v"), arr("u"), arr("a"), arr("residual")
+    for key, value in (("v", v), ("a", a), ("residual", residual)):
+        if value is not None and v is not None and value.size != v.size:
+            raise ValueError(f"'{key}' must have as many entries as 'v' ({v.size}), got "
+                             f"{value.size}")
+    return OperatingPoint(q=arr("q", True), v=v, u=u, a=a, residual=residual,
+                          equilibrium=equilibrium, tolerance=float(tolerance), y=arr("y"),
+                          lam=lam, notes=strings("notes"), lam_names=lam_names)

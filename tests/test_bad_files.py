@@ -313,6 +313,13 @@ BAD_FILES = {
         "'tolerance' must be a number >= 0"),
     "json_op_without_q": ("m.json", lambda p, m: p.write_text(
         _edit_json(m, lambda d: d["operating_point"].pop("q"))), "missing 'q'"),
+    # (a saved model whose lam lost its names loaded, and saving it again failed inside zip)
+    "json_op_lam_without_names": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["operating_point"].update(lam=[1.0, 2.0], lam_names=[]))),
+        "'lam_names' must name each of the 2 entries of 'lam', got 0 names"),
+    "json_op_short_a": ("m.json", lambda p, m: p.write_text(
+        _edit_json(m, lambda d: d["operating_point"].update(a=[0.0, 0.0, 0.0]))),
+        "'a' must have as many entries as 'v'"),
     "npz_member_twice": ("m.npz", lambda p, m: _npz_twice(p, _valid_members(m)),
                          "member 'A' appears twice"),
     "npz_unknown_member": ("m.npz", lambda p, m: _npz(p, **{**_valid_members(m),
