@@ -521,11 +521,9 @@ def _pairs_adjacent(order: np.ndarray, wi: np.ndarray) -> np.ndarray:
     p (Im > 0) and p + 1; sorting by (|lam|, Re, -Im) keeps them adjacent unless another pair
     is equal to the bit (a repeated eigenvalue, e.g. symmetric constraint modes), which puts
     both +Im first: then each +Im is followed by its own partner."""
-    pos = (wi[order] > 0).nonzero()[0]
-    if not pos.size:
-        return order
-    after = pos + 1
-    if after[-1] < len(order) and (order[after] == order[pos] + 1).all():
+    o, w = order.tolist(), wi.tolist()     # a few dozen numbers: Python beats numpy calls
+    n = len(o)
+    if all(not w[p] > 0.0 or (k + 1 < n and o[k + 1] == p + 1) for k, p in enumerate(o)):
         return order
     out: list[int] = []
     for p in order.tolist():
