@@ -205,9 +205,11 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
     except PinlinError:     # the model stands without it: say where to find out why
         op, key = None, "; no keyframe: pinlin linearize says why the operating point is refused"
     else:
-        key = "; keyframe 'operating_point' holds q0 and v0"
+        key = ("; keyframe 'operating_point' holds q0, v0"
+               + (" and the inputs u0 (ctrl of its motors)" if op.u.size else ""))
         check_resolved(linearize(scene, allow_non_equilibrium=True), dt, "--dt")
-    xml = to_xml(ms, scene.system, *((op.q, op.v) if op is not None else ()))
+    xml = to_xml(ms, scene.system, *((op.q, op.v) if op is not None else ()),
+                 u=op.u if op is not None else None)
     write_text_atomic(out, xml)
     print(f"MJCF of '{scene.name}' written to {out} (nq = {ms.model.nq}, nv = {ms.model.nv}, "
           f"{plural(ms.model.neq, 'equality', 'equalities')}, dt = {dt:g} s{key})")

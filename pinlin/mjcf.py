@@ -311,14 +311,16 @@ MJCF_MARKER = "<!-- Written by pinlin export-mjcf"
 
 
 def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray | None = None,
-           key: str = "operating_point") -> str:
+           key: str = "operating_point", u: np.ndarray | None = None) -> str:
     """The MJCF text of ``ms``; with ``q`` (and ``v``), a keyframe ``key`` holding pinlin's
     (q, v) in MuJoCo's coordinates: ``mj_resetDataKeyframe`` starts MuJoCo there (``ms``'s
-    own spec is left as it was). MuJoCo's writer keeps 6 digits, which opens a held foot by
+    own spec is left as it was). With ``u`` too (the scene's inputs at that point), each input
+    on a 1-DoF joint becomes a motor actuator named as the input (``u:<joint>``, gear 1, no
+    control limit) and the keyframe's ``ctrl`` holds u: reset to the key, MuJoCo applies the
+    inputs that hold the posture. MuJoCo's writer keeps 6 digits, which opens a held foot by
     ~1e-6 m: the bodies' placements and inertias, pinlin's sites, the time step and gravity,
     the joints' stiffness, spring reference, damping and armature, and the key are rewritten
-    at full precision. Generalized forces have no keyframe field: inputs that hold the posture
-    still need applying. The text begins with :data:`MJCF_MARKER`.
+    at full precision. The text begins with :data:`MJCF_MARKER`.
 
     Raises:
         MujocoError: MuJoCo cannot write the model.
@@ -329,7 +331,11 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
         set_state(ms, system, q, v, np.zeros(system.nv))
         qpos, qvel = ms.data.qpos.copy(), ms.data.qvel.copy()
         spec = ms.spec.copy()    # the key goes into the file, not into ms's own spec
-        spec.add_key(name=key, qpos=qpos, qvel=qvel)
+        ctrl = _motors(spec, system, u) if u is not None else None
+        if ctrl is not None and ctrl.size:
+            spec.add_key(name=key, qpos=qpos, qvel=qvel, ctrl=ctrl)
+        else:
+            spec.add_key(name=key, qpos=qpos, qvel=qvel)
     try:
         xml = spec.to_xml()
     except Exception as exc:  # noqa: BLE001  MuJoCo raises ValueError or RuntimeError
@@ -362,9 +368,34 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
         xml = _exact_attributes(xml, f'<site name="{name}"',
                                 {"pos": m.site_pos[i], "quat": m.site_quat[i]})
     if q is not None:
-        xml = _exact_attributes(xml, f'<key name="{key}"', {"qpos": qpos, "qvel": qvel})
+        exact = {"qpos": qpos, "qvel": qvel}
+        if ctrl is not None and ctrl.size:
+            exact["ctrl"] = ctrl
+        xml = _exact_attributes(xml, f'<key name="{key}"', exact)
     name = system.scene.name.replace("--", "- -")    # "--" may not appear in a comment
     return f"{MJCF_MARKER} from scene '{name}' -->\n" + xml
+
+
+def _motors(spec, system, u: np.ndarray) -> np.ndarray | None:
+    """Add a motor actuator (gear 1, no limits) per input of ``system`` on ``spec`` and return
+    the controls u in their order; None (nothing added) when an input drives a coordinate of
+    a multi-DoF joint, which a joint motor cannot."""
+    joint_of = {}
+    for name, j in system.joints.items():
+        if j.nv == 1:
+            joint_of[j.idx_v] = name
+    columns = [int(c) for c in system.actuated]
+    if any(c not in joint_of for c in columns):
+        return None
+    for c, input_name in zip(columns, system.input_names, strict=True):
+        act = spec.add_actuator()
+        act.name = input_name
+        act.target = joint_of[c]
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_motor()
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        act.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    return np.asarray(u, dtype=float)
 
 
 def _next(xml: str, text: str, start: int) -> int:
