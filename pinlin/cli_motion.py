@@ -14,6 +14,7 @@ import numpy as np
 
 from .cli_format import check_out, file_name, folder_name, mode_rows, options_named, plural
 from .exceptions import ArgumentError, ModelFileError
+from .files import all_or_nothing
 
 #: The trajectory progress bar appears once a run has taken this long [s].
 PROGRESS_AFTER = 1.0
@@ -317,16 +318,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     lines.append(f"final deviation: "
                  f"{final or 'none (no states: the constraints hold everything)'}")
     states = {name: sim.z[:, k] for k, name in enumerate(sim.independent_names)}
-    # The files first: a failed write prints one line, not the result before it.
-    if out is not None:
-        outputs = {f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)}
-        _write_history(out, sim.t, {**states, **outputs})
-        lines.append(f"time histories written to {out}")
-    if plot is not None:
-        _plot_histories(plot, f"{scene.name}: nonlinear simulation", sim.t,
-                        [(name, sim.t, sim.z[:, k], "-")
-                         for k, name in enumerate(sim.independent_names[:n])])
-        lines.append(f"plot written to {plot}")
+    # The files first (both, or neither): a failed write prints one line, not the result.
+    with all_or_nothing():
+        if out is not None:
+            outputs = {f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)}
+            _write_history(out, sim.t, {**states, **outputs})
+            lines.append(f"time histories written to {out}")
+        if plot is not None:
+            _plot_histories(plot, f"{scene.name}: nonlinear simulation", sim.t,
+                            [(name, sim.t, sim.z[:, k], "-")
+                             for k, name in enumerate(sim.independent_names[:n])])
+            lines.append(f"plot written to {plot}")
     print("\n".join(lines))
     return 0
 
@@ -394,15 +396,16 @@ def _cmd_response(args: argparse.Namespace) -> int:
                    for k, name in enumerate(sim.independent_names[:n])]
         columns.update({f"nl:{name}": sim.z[:, k]
                         for k, name in enumerate(sim.independent_names)})
-    # The files first: a failed write prints one line, not the result before it.
-    if out is not None:
-        _write_history(out, res.t, columns)
-        lines.append(f"time histories written to {out}")
-    if plot is not None:
-        _plot_histories(plot, f"{model.name}: linear response"
-                        + (" and nonlinear simulation" if args.nonlinear else ""), res.t,
-                        curves)
-        lines.append(f"plot written to {plot}")
+    # The files first (both, or neither): a failed write prints one line, not the result.
+    with all_or_nothing():
+        if out is not None:
+            _write_history(out, res.t, columns)
+            lines.append(f"time histories written to {out}")
+        if plot is not None:
+            _plot_histories(plot, f"{model.name}: linear response"
+                            + (" and nonlinear simulation" if args.nonlinear else ""), res.t,
+                            curves)
+            lines.append(f"plot written to {plot}")
     print("\n".join(lines))
     return 0
 

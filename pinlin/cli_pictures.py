@@ -23,6 +23,7 @@ def _linearize(args: argparse.Namespace):
 
 def _cmd_modes(args: argparse.Namespace) -> int:
     from .cli_format import print_operating_point
+    from .files import all_or_nothing
     from .mode_pictures import animate_modes, check_target, default_modes, plot_modes
     from .stick_figure import MAX_AMPLITUDE
 
@@ -46,12 +47,13 @@ def _cmd_modes(args: argparse.Namespace) -> int:
         raise ArgumentError("--plot" if png else "--gif",
                             f"model '{model.name}' has no mode to draw (no states)")
     written = []     # the files first: a failure prints one line, not the table before it
-    if png is not None:
-        plot_modes(scene, modes, png, indices, amplitude=args.amplitude)
-        written.append(f"mode picture written to {png}")
-    if gif is not None:
-        animate_modes(scene, modes, gif, indices, amplitude=args.amplitude)
-        written.append(f"mode animation written to {gif}")
+    with all_or_nothing():      # both files, or neither
+        if png is not None:
+            plot_modes(scene, modes, png, indices, amplitude=args.amplitude)
+            written.append(f"mode picture written to {png}")
+        if gif is not None:
+            animate_modes(scene, modes, gif, indices, amplitude=args.amplitude)
+            written.append(f"mode animation written to {gif}")
     print_operating_point(model, scene.system)
     print()
     print(modes)

@@ -308,18 +308,64 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         tmp = _create_temp(target)
     except OSError as exc:
         raise ModelFileError(path, f"cannot write: {exc.strerror or exc}") from None
+    handed_over = False
     try:
         yield tmp
-        if before is not None:
-            os.chmod(tmp, stat.S_IMODE(before.st_mode))
-            with contextlib.suppress(OSError):
-                os.chown(tmp, before.st_uid, before.st_gid)
-        os.replace(tmp, target)
+        if _PENDING:        # inside all_or_nothing(): renamed with the others at its end
+            _PENDING[-1].append((tmp, target, before, path))
+            handed_over = True
+        else:
+            _commit(tmp, target, before)
     except OSError as exc:
         raise ModelFileError(path, f"cannot write: {exc.strerror or exc}") from None
     finally:
+        if not handed_over:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+
+
+def _commit(tmp: Path, target: Path, before: os.stat_result | None) -> None:
+    """Give ``tmp`` the permissions (and owner) of the file it replaces, and rename it."""
+    if before is not None:
+        os.chmod(tmp, stat.S_IMODE(before.st_mode))
         with contextlib.suppress(OSError):
-            tmp.unlink()
+            os.chown(tmp, before.st_uid, before.st_gid)
+    os.replace(tmp, target)
+
+
+#: Files written inside :func:`all_or_nothing` blocks, waiting for their rename (innermost last).
+_PENDING: list[list[tuple[Path, Path, os.stat_result | None, Path]]] = []
+
+
+@contextlib.contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Files written atomically inside the block appear together when it ends, or none of them
+    does: each is written to its temporary file as usual, and the renames wait until the block
+    has written them all (a command that writes a history and a plot keeps neither when the
+    second write fails). An exception in the block removes the temporary files.
+
+    Raises:
+        ModelFileError: a rename fails (the files not yet renamed are removed).
+    """
+    pending: list[tuple[Path, Path, os.stat_result | None, Path]] = []
+    _PENDING.append(pending)
+    try:
+        yield
+    except BaseException:
+        for tmp, *_ in pending:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        raise
+    finally:
+        _PENDING.pop()
+    for k, (tmp, target, before, path) in enumerate(pending):
+        try:
+            _commit(tmp, target, before)
+        except OSError as exc:
+            for rest, *_ in pending[k:]:
+                with contextlib.suppress(OSError):
+                    rest.unlink()
+            raise ModelFileError(path, f"cannot write: {exc.strerror or exc}") from None
 
 
 def write_atomic(path: str | Path, writer: Callable[[IO[bytes]], object]) -> None:

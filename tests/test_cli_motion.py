@@ -216,3 +216,23 @@ def test_a_failed_write_prints_nothing_but_the_error(argv, capfd, tmp_path, monk
     argv = [str(tmp_path / a) if a.startswith("OUT") else a for a in argv]
     code, out, err = run(capfd, *argv)
     assert code == 2 and out == "" and "File too large" in err and err.count("\n") == 1
+
+
+def test_two_outputs_appear_together_or_not_at_all(capfd, tmp_path, monkeypatch):
+    """--out and --plot: when the plot cannot be written, the history is not kept either
+    (it was left behind, the command exiting 2), and no temporary file remains."""
+    from pinlin import cli_motion
+    from pinlin.exceptions import ModelFileError
+
+    def full(path, title, t, curves):
+        raise ModelFileError(path, "cannot write: No space left on device")
+
+    monkeypatch.setattr(cli_motion, "_plot_histories", full)
+    code, out, err = run(capfd, "response", "pendulum", "--t-end", "0.1", "--x0", "hinge=0.1",
+                         "--out", str(tmp_path / "r.csv"), "--plot", str(tmp_path / "r.png"))
+    assert code == 2 and out == "" and "No space left" in err
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.undo()
+    code, out, _ = run(capfd, "response", "pendulum", "--t-end", "0.1", "--x0", "hinge=0.1",
+                       "--out", str(tmp_path / "r.csv"), "--plot", str(tmp_path / "r.png"))
+    assert code == 0 and sorted(p.name for p in tmp_path.iterdir()) == ["r.csv", "r.png"]
