@@ -352,3 +352,24 @@ def test_small_resistance_beside_a_large_one_keeps_its_digits(shunt):
     np.testing.assert_allclose(m.B, [[exact]], rtol=4 * np.finfo(float).eps)
     np.testing.assert_array_equal(m.C[1], m.C[2])
     np.testing.assert_array_equal(m.D[1], m.D[2])
+
+
+def test_small_capacitor_beside_a_large_one_gets_its_share_exactly():
+    """Capacitors C1 = 9.24e-6 F and C5 = 1.584e-2 F in parallel (C1 the state, C5 dependent
+    storage), fed by Vs through R4, with R3 and two inductors across them. By hand (KCL at
+    their node, v = v:b1): (C1 + C5) v' = f_L0 + f_L6 - v/R3 + (Vs - v)/R4, and
+    f_C1 = C1 v' = C1/(C1 + C5) (...). Taken as the cutset's difference of large currents, the
+    share lost ~1e-13 (180 ulps); from the state equation it is exact to rounding."""
+    C1, C5, R3, R4 = 9.24e-06, 0.01584, 0.07192, 0.0008979
+    g = Graph("share")
+    for b in [("L0", "T", "n2", "n0", 0.002965), ("C1", "A", "n0", "n1", C1),
+              ("Vs", "across_source", "n2", "n1"), ("R3", "D", "n0", "n1", R3),
+              ("R4", "D", "n2", "n0", R4), ("C5", "A", "n1", "n0", C5),
+              ("L6", "T", "n1", "n0", 50020.0)]:
+        g.add_branch(*b)
+    m = g.linearize(outputs=["f:C1"])
+    assert m.state_names == ("f:L0", "v:C1", "f:L6")
+    k = C1 / (C1 + C5)
+    np.testing.assert_allclose(m.C[0], [k, -k * (1 / R3 + 1 / R4), k],
+                               rtol=8 * np.finfo(float).eps)
+    np.testing.assert_allclose(m.D[0], [k / R4], rtol=8 * np.finfo(float).eps)
