@@ -168,7 +168,16 @@ class OperatingPointSpec:
     v: JointValues = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        """Check the fields as the scene file's are checked (also for a spec built in Python or
+        changed with ``dataclasses.replace``)."""
         flag(None, "operating_point.allow_non_equilibrium", self.allow_non_equilibrium)
+        for j, x in joint_table(None, "operating_point.q", self.q).items():
+            joint_position(None, f"operating_point.q.{j}", x)
+        name_list(None, "operating_point.independent", list(self.independent))
+        joint_values(None, "operating_point.u", self.u, unit=" [N*m or N]",
+                     limit=COEFFICIENT_LIMIT)
+        joint_values(None, "operating_point.v", self.v, unit=" [rad/s or m/s]",
+                     limit=COEFFICIENT_LIMIT)
         if self.solve not in _SOLVE_MODES:
             raise SceneError(None, "operating_point.solve",
                              f"expected one of {', '.join(repr(c) for c in _SOLVE_MODES)}, "
@@ -218,6 +227,16 @@ class Scene:
     loops: tuple[Loop, ...] = ()
     source: Path | None = None
     contacts: tuple[Contact, ...] = ()
+
+    def __post_init__(self) -> None:
+        """The fields a Python caller can get wrong without a parser to refuse them."""
+        if self.base not in (None, "fixed", "free"):
+            raise SceneError(self.source, "base", f"expected \"fixed\" or \"free\", got "
+                                                  f"{show(self.base)}")
+        for key, kind in (("effects", Effects), ("operating_point", OperatingPointSpec)):
+            if not isinstance(getattr(self, key), kind):
+                raise SceneError(self.source, key, f"expected a {kind.__name__}, got "
+                                                   f"{show(getattr(self, key))}")
 
     # ----------------------------------------------------------------------------------------
     @classmethod

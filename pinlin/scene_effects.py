@@ -25,6 +25,7 @@ from .fields import (
     joint_values,
     number,
     number_list,
+    show,
     table,
 )
 
@@ -45,6 +46,12 @@ class Spring:
     stiffness: float
     rest: float = 0.0
 
+    def __post_init__(self) -> None:   # a Spring built in Python is checked as the file's
+        number(None, "effects.springs.stiffness", self.stiffness, minimum=0.0,
+               unit=" [N*m/rad or N/m]", limit=COEFFICIENT_LIMIT)
+        number(None, "effects.springs.rest", self.rest, unit=" [rad or m]",
+               limit=POSITION_LIMIT)
+
 
 JointValues = Mapping[str, float | tuple[float, ...]]
 
@@ -60,6 +67,14 @@ class Rotation:
 
     axis: tuple[float, float, float]
     rate: float
+
+    def __post_init__(self) -> None:
+        axis = direction(None, "effects.rotation.axis", self.axis)
+        if max(abs(a - b) for a, b in zip(axis, self.axis, strict=True)) > 1e-12:
+            raise SceneError(None, "effects.rotation.axis", f"expected a unit vector (the rate "
+                                                            f"gives the speed), got "
+                                                            f"{show(self.axis)}")
+        number(None, "effects.rotation.rate", self.rate, unit=" [rad/s]", limit=RATE_LIMIT)
 
 
 @dataclass(frozen=True)
@@ -86,7 +101,25 @@ class Effects:
     mimic: bool = False
 
     def __post_init__(self) -> None:
+        """Check the fields as the scene file's are checked (an Effects built in Python, or
+        changed with ``dataclasses.replace``, gets the same refusals)."""
         flag(None, "effects.mimic", self.mimic)
+        if self.gravity is not None:
+            number_list(None, "effects.gravity", self.gravity, length=3, unit=" [m/s^2]",
+                        limit=COEFFICIENT_LIMIT)
+        for key, unit in (("armature", " [kg*m^2 or kg]"), ("damping", " [N*m*s/rad or N*s/m]")):
+            value = getattr(self, key)
+            if value is not None and value is not False:
+                _per_joint(None, f"effects.{key}", value, unit)
+        if self.springs is not None:
+            joint_table(None, "effects.springs", self.springs)
+            for joint, spring in self.springs.items():
+                if not isinstance(spring, Spring):
+                    raise SceneError(None, f"effects.springs.{joint}", f"expected a Spring, got "
+                                                                       f"{show(spring)}")
+        if self.rotation is not None and not isinstance(self.rotation, Rotation):
+            raise SceneError(None, "effects.rotation", f"expected a Rotation or None, got "
+                                                       f"{show(self.rotation)}")
 
     def in_play(self) -> list[str]:
         """Names of the effects present, in a fixed order."""

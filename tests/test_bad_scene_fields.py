@@ -448,3 +448,44 @@ def test_inputs_on_a_joint_without_any_say_so_whatever_their_count(value, tmp_pa
     with pytest.raises(pinlin.SceneError, match=r"operating_point.u.root_joint.*is not "
                                                  r"actuated"):
         pinlin.linearize(Scene.load(path))
+
+
+def _replaced(**changes):
+    import dataclasses
+
+    from pinlin.scene_effects import Rotation, Spring
+
+    scene = pinlin.Scene.resolve("pendulum")
+    R = dataclasses.replace
+    made = {
+        "negative_damping": lambda: R(scene, effects=R(scene.effects, damping={"hinge": -5.0})),
+        "infinite_rest": lambda: R(scene, effects=R(scene.effects, springs={
+            "hinge": Spring(1.0, float("inf"))})),
+        "axis_not_unit": lambda: R(scene, effects=R(scene.effects, rotation=Rotation(
+            (0.0, 0.0, 5.0), 1.0))),
+        "axis_zero": lambda: R(scene, effects=R(scene.effects, rotation=Rotation(
+            (0.0, 0.0, 0.0), 1.0))),
+        "base_floating": lambda: R(scene, base="floating"),
+        "q_boolean": lambda: R(scene, operating_point=R(scene.operating_point,
+                                                        q={"hinge": True})),
+        "q_huge": lambda: R(scene, operating_point=R(scene.operating_point,
+                                                     q={"hinge": 1e300})),
+        "gravity_text": lambda: R(scene, effects=R(scene.effects, gravity="down")),
+        "v_text": lambda: R(scene, operating_point=R(scene.operating_point, solve="none",
+                                                     v={"hinge": "x"})),
+    }
+    return made[changes["case"]]
+
+
+@pytest.mark.parametrize("case, field", [
+    ("negative_damping", "effects.damping.hinge"), ("infinite_rest", "effects.springs.rest"),
+    ("axis_not_unit", "effects.rotation.axis"), ("axis_zero", "effects.rotation.axis"),
+    ("base_floating", "base"), ("q_boolean", "operating_point.q.hinge"),
+    ("q_huge", "operating_point.q.hinge"), ("gravity_text", "effects.gravity"),
+    ("v_text", "operating_point.v.hinge")])
+def test_scenes_changed_in_python_are_checked_like_files(case, field):
+    """dataclasses.replace (the README's way to vary a scene) bypassed every check of the file
+    parser: negative damping gave A[1, 1] = +4.995 (an unstable pendulum), a 5-long rotation
+    axis spun the scene at 5 rad/s, text gravity a Boost.Python error."""
+    with pytest.raises(pinlin.SceneError, match=f"field '{field}'"):
+        _replaced(case=case)()
