@@ -157,6 +157,11 @@ def damping_vector(system: JointIndex, damping: JointValues | bool | None) -> np
     says: True takes the URDF ``<dynamics damping>`` values; None: zeros."""
     if damping is True:
         values = np.array(system.model.damping, dtype=float).copy()
+        if not np.any(values):   # as for armature = true: no values to take is an error
+            raise SceneError(system.scene.source, "effects.damping",
+                             "true takes the damping from the URDF's <dynamics damping>, and "
+                             "this robot has none; give a table {joint = value} "
+                             "[N*m*s/rad or N*s/m]")
         check_model_coefficients(system, values, "effects.damping", "URDF <dynamics damping>",
                                  "N*m*s/rad or N*s/m")
         return values

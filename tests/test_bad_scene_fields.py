@@ -206,6 +206,10 @@ CASES = {
                               '<axis xyz="0 1 0"/><dynamics damping="1e300"/>')},
                           pinlin.SceneError, ["effects.damping", "<dynamics damping>",
                                               "'hinge' 1e+300", "[0, 1e+12]"]),
+    # (damping = true on a URDF without <dynamics damping> gave zero damping while the model
+    # listed damping among the effects in play; armature = true was refused alike)
+    "urdf_has_no_damping": (HEAD + "[effects]\ndamping = true\n", {"robot__urdf": PENDULUM},
+                            pinlin.SceneError, ["effects.damping", "this robot has none"]),
     "urdf_joint_named_spin": (HEAD + "[effects]\nrotation = { axis = [0, 0, 1], rate = 1.0 }\n",
                               {"robot__urdf": PENDULUM.replace('name="hinge"',
                                                                'name="__spin__"')},
