@@ -26,13 +26,19 @@ continuous model (M, C_damp, K, Bu) are not carried over, since they describe it
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import scipy.linalg as sla
 
+from .conditioning import AccuracyWarning
 from .exceptions import ArgumentError, ModelError
 
 METHODS = ("zoh", "euler")
+#: A zero-order hold whose estimated relative error (:func:`zoh_rounding`) exceeds this gets
+#: an AccuracyWarning (the level at which pinlin's other estimates warn).
+WARN_ZOH_ERROR = 1e-6
+_EPS = float(np.finfo(float).eps)
 
 
 def check_step(dt: object, method: object) -> float:
@@ -83,12 +89,41 @@ def discretize(model, dt: float, method: str = "zoh"):
         else:
             A_d, B_d, f_d = _semi_implicit_euler(model, dt, f0)
     refuse_overflow(model.name, dt, method, A_d, B_d, f_d)
+    if method == "zoh":
+        warn_if_inaccurate(model.name, dt, model.A)
     return LinearModel(
         A=A_d, B=B_d, C=model.C, D=model.D, state_names=model.state_names,
         input_names=model.input_names, output_names=model.output_names, F=model.F,
         operating_point=model.operating_point, G=model.G, name=model.name,
         info={**model.info, "discretization": {"method": method, "dt": dt}},
         f0=f_d if model.f0 is not None else None, dt=dt)
+
+
+def zoh_rounding(A: np.ndarray, dt: float) -> float:
+    """Estimated relative error of expm(A dt) in double precision: eps ||A||_1 dt. Scaling and
+    squaring halves A dt until it is small, then squares s ~ log2 ||A dt|| times, and each
+    squaring's rounding, relative to the result, compounds with the growth it undoes: the
+    error grows in proportion to ||A dt||, as does the rounding of A dt itself (a phase
+    w dt known to eps w dt). An undamped 3.13 rad/s oscillator against its closed form: 0.6 to
+    11 times this estimate from dt = 0.01 to 1e13 s. ``A``: one matrix or a stack (the
+    largest point's)."""
+    if A.size == 0:
+        return 0.0
+    norm = float(np.abs(A).sum(axis=-2).max())     # max column sum: ||A||_1, of every point
+    return _EPS * norm * dt
+
+
+def warn_if_inaccurate(name: str, dt: float, A: np.ndarray) -> None:
+    """AccuracyWarning when the zero-order hold over ``dt`` [s] of ``A`` may lose more than
+    WARN_ZOH_ERROR (relative) to rounding: the sample time is ~1e10 times the model's fastest
+    time scale or more, and the discrete matrices keep few (or no) correct digits."""
+    error = zoh_rounding(A, dt)
+    if error > WARN_ZOH_ERROR:
+        warnings.warn(AccuracyWarning(
+            f"model '{name}': a zero-order hold over dt = {dt:g} s spans ||A|| dt = "
+            f"{error / _EPS:.2e} of the model's fastest time scale; rounding in the matrix "
+            f"exponential may reach {error:.1e} (relative) of the discrete matrices; use a "
+            "shorter dt", 1.0 / max(error, _EPS)), stacklevel=3)
 
 
 def refuse_overflow(name: str, dt: float, method: str, A_d: np.ndarray, B_d: np.ndarray,

@@ -234,7 +234,13 @@ class TrajectoryModel:
                 models that are already discrete.
             ModelError: ``dt`` so long that a discrete matrix overflows (naming the point).
         """
-        from .discretization import check_step, refuse_overflow, stacked_euler, stacked_zoh
+        from .discretization import (
+            check_step,
+            refuse_overflow,
+            stacked_euler,
+            stacked_zoh,
+            warn_if_inaccurate,
+        )
 
         dt = check_step(dt, method)
         if self.dt:
@@ -244,6 +250,8 @@ class TrajectoryModel:
             A_d, B_d, f_d = (stacked_zoh if method == "zoh" else stacked_euler)(
                 self.A, self.B, self.f0, dt)
         refuse_overflow(self.name, dt, method, A_d, B_d, f_d)
+        if method == "zoh":
+            warn_if_inaccurate(self.name, dt, self.A)
         for arr in (A_d, B_d, f_d):
             arr.setflags(write=False)
         return TrajectoryModel.trusted(**{

@@ -200,6 +200,36 @@ def test_discretize_refuses_what_it_cannot_do():
         canon.discretize(0.01, "euler")
 
 
+def test_zero_order_hold_warns_where_rounding_eats_the_digits():
+    """An undamped oscillator (w = 3.125 rad/s) held over dt = 2^40 s ~ 1.1e12 s (w and dt
+    binary-exact, so the phase w dt is exact and math.cos/sin give the closed form
+    [[cos, sin/w], [-w sin, cos]] to an ulp): pinlin's matrix exponential differs by ~2e-4
+    relative (its squarings alone), and finite nonsense came back silently (at 1e16 s an
+    undamped pendulum's discrete eigenvalues had |z| = 1e33). An AccuracyWarning now says so
+    from eps ||A|| dt > 1e-6; an ordinary dt stays silent."""
+    import math
+    import warnings
+
+    w, dt = 3.125, 2.0 ** 40
+    A = np.array([[0.0, 1.0], [-w * w, 0.0]])
+    model = pinlin.LinearModel(A=A, B=np.zeros((2, 0)), C=np.eye(2), D=np.zeros((2, 0)),
+                               state_names=("q:x", "v:x"), input_names=(),
+                               output_names=("q:x", "v:x"), name="oscillator")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.discretize(0.01)
+        model.discretize(1e6)
+    with pytest.warns(pinlin.AccuracyWarning, match=r"dt = 1.09951e\+12 s .* may reach 2.4e-03"):
+        A_d = model.discretize(dt).A
+    phase = w * dt
+    exact = np.array([[math.cos(phase), math.sin(phase) / w],
+                      [-w * math.sin(phase), math.cos(phase)]])
+    assert np.abs(A_d - exact).max() / np.abs(exact).max() > 1e-6   # the warning is due
+    trajectory = pinlin.linearize_trajectory("pendulum", np.zeros((2, 1)))
+    with pytest.warns(pinlin.AccuracyWarning, match="zero-order hold"):
+        trajectory.discretize(1e12)
+
+
 def test_discrete_and_affine_models_round_trip(tmp_path):
     scene = pinlin.Scene.from_robot("ur5")
     q0, v0, u0 = _moving_state(scene, 9)
