@@ -4,6 +4,7 @@ argument and, for arrays, the first bad row."""
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
@@ -13,7 +14,8 @@ import pinocchio as pin
 
 from .arrays import non_numbers
 from .derivatives import BACKENDS, resolve_steps
-from .exceptions import ArgumentError, ShapeError
+from .exceptions import ArgumentError, ResourceError, ShapeError
+from .resources import check_memory
 from .system import System
 
 #: A configuration's unit-norm parts (quaternions, (cos, sin) pairs) may be off by this.
@@ -28,10 +30,19 @@ def points(name: str, value: object, width: int, what: str, points: int | None,
     bad = non_numbers(value)
     if bad:
         raise ArgumentError(name, f"expected real numbers ({what}), got {bad}")
+    shape = getattr(value, "shape", None)
+    if isinstance(shape, tuple) and all(isinstance(d, int) for d in shape):
+        # the float64 copy, checked before it is made (a broadcast view or a compressed
+        # file's array can be far larger than the memory it arrives in)
+        check_memory(8 * math.prod(shape), f"argument '{name}' ({what})",
+                     f"a float64 copy of shape {shape}")
     try:
         arr = np.array(value, dtype=float, order="C")
     except (TypeError, ValueError, OverflowError):
         raise ArgumentError(name, f"expected {expected}, got {value!r:.80}") from None
+    except MemoryError:
+        raise ResourceError(f"argument '{name}' ({what}) does not fit in memory as float64 "
+                            "numbers; give fewer points") from None
     if arr.ndim == 1 and width == 0 and points is not None and arr.size == 0:
         arr = arr.reshape(points, 0)
     if arr.ndim != 2 or arr.shape[1] != width:

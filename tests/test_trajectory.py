@@ -607,3 +607,14 @@ def test_a_model_built_by_hand_with_times_out_of_order_is_refused():
                                              "state_names", "input_names", "output_names")}
     with pytest.raises(pinlin.ArgumentError, match="times must increase strictly"):
         pinlin.TrajectoryModel(**fields, t=np.array([1.0, 0.5]))
+
+
+def test_a_trajectory_too_large_to_copy_is_a_resource_error():
+    """A broadcast view of 1e9 points (19 numbers each: 142 GiB as float64) raised numpy's
+    MemoryError from the copy; the copy's size is now checked against the memory limit first."""
+    import pinocchio as pin
+
+    scene = pinlin.Scene.from_robot("solo12")
+    q = np.broadcast_to(pin.neutral(scene.system.model), (10**9, scene.system.nq))
+    with pytest.raises(pinlin.ResourceError, match=r"argument 'q' .* shape \(1000000000, 19\)"):
+        pinlin.linearize_trajectory(scene, q)
