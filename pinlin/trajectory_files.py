@@ -199,7 +199,9 @@ def _read_csv_states(path: Path, raw: bytes, system: System
                                        f"names {len(header)} columns")
         for col, cell in enumerate(fields):
             try:
-                if "_" in cell:  # float() reads "1_0" as 10: not a number a CSV writes
+                # float() reads "1_0" as 10 and any script's digits ("\u0663" as 3): not
+                # numbers a CSV writes
+                if "_" in cell or not cell.isascii():
                     raise ValueError(cell)
                 values[row, col] = float(cell)
             except ValueError:

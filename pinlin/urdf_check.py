@@ -68,6 +68,12 @@ from .fields import POSITION_LIMIT
 #: Shortest joint axis accepted [-]: anything shorter is reported as a zero axis.
 MIN_AXIS_NORM = 1e-6
 
+#: Smallest positive link mass [kg]: Pinocchio adds each link's inertia to its body's with
+#: the centre of mass divided by max(m, eps), so below eps the lever arm shrinks by m / eps
+#: (a 1e-18 kg link 0.15 m out got 3e-6 m; a 1e-16 kg pendulum bob gave A[1, 0] = -0.403
+#: instead of -4.905); from eps on the division is exact.
+MASS_FLOOR = 2.220446049250313e-16
+
 #: Largest magnitudes accepted in ``<origin>`` [m, rad]: the scene files' position range.
 #: (An offset of 1e200 m overflows m d^2 and made M NaN, reported as a body without mass.
 #: Huge masses and inertias are left to the model's own check, which names matrix M.)
@@ -240,6 +246,11 @@ class _Checker:
         if mass < 0.0:
             self.fail(f"link '{name}': mass must be a finite number >= 0 [kg], got "
                       f"{mass_el.get('value')}")
+        if 0.0 < mass < MASS_FLOOR:
+            self.fail(f"link '{name}': mass {mass_el.get('value')} kg is below "
+                      f"{MASS_FLOOR:.3g} kg (eps), where Pinocchio's inertia arithmetic "
+                      "shrinks the link's centre-of-mass offset by m / eps; give 0 for a "
+                      "massless link or a mass of at least eps")
         inertia_el = self.children(el, "inertia", where, required=True)
         keys = _ATTRIBUTES["inertia"]
         missing = [k for k in keys if k not in inertia_el.attrib]

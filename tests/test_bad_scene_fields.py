@@ -208,6 +208,10 @@ CASES = {
                                               "'hinge' 1e+300", "[0, 1e+12]"]),
     # (damping = true on a URDF without <dynamics damping> gave zero damping while the model
     # listed damping among the effects in play; armature = true was refused alike)
+    # (Pinocchio divides by max(m, eps): a 1e-16 kg bob's lever arm shrank, A came out wrong)
+    "urdf_tiny_mass": (HEAD, {"robot__urdf": PENDULUM.replace('<mass value="1.0"/>',
+                                                              '<mass value="1e-16"/>')},
+                       pinlin.PinlinError, ["link 'bob'", "below 2.22e-16 kg (eps)"]),
     "urdf_has_no_damping": (HEAD + "[effects]\ndamping = true\n", {"robot__urdf": PENDULUM},
                             pinlin.SceneError, ["effects.damping", "this robot has none"]),
     "urdf_joint_named_spin": (HEAD + "[effects]\nrotation = { axis = [0, 0, 1], rate = 1.0 }\n",

@@ -521,6 +521,8 @@ def test_cli_refuses_bad_csv_headers(edit, words, tmp_path, capfd):
                            "number"),
     ("{header}\n", "no data"),
     ("{header}\n{underscore}\n", "line 3, column 'q:shoulder_pan_joint': '1_0' is not a number"),
+    # (float() read an Arabic-Indic three as 3.0 and a full-width zero as 0)
+    ("{header}\n{arabic}\n", "line 3, column 'q:shoulder_pan_joint': '\u0663' is not a number"),
     # Values the file held, refused by the checks of linearize_trajectory: in the file's terms
     ("{header}\n{zero}\n\n{huge}\n", "line 5, column 'v:shoulder_lift_joint': point 1 has "
                                        "an entry of size 1e+300; velocities are limited"),
@@ -532,10 +534,12 @@ def test_cli_refuses_bad_csv_rows(text, words, tmp_path, capfd):
     nan = ",".join(["nan"] + ["0"] * 17)
     zero = ",".join(["0"] * 18)
     underscore = ",".join(["1_0"] + ["0"] * 17)
+    arabic = ",".join(["\u0663"] + ["0"] * 17)
     huge = ",".join(["0"] * 7 + ["1e300"] + ["0"] * 10)
     path = tmp_path / "traj.csv"
     path.write_text("# comment\n" + text.format(header=header, bad=bad, nan=nan, zero=zero,
-                                                 huge=huge, underscore=underscore))
+                                                 huge=huge, underscore=underscore,
+                                                 arabic=arabic), encoding="utf-8")
     assert main(["trajectory", "ur5", str(path), "--out", str(tmp_path / "m.npz")]) == 2
     err = capfd.readouterr().err
     assert words in err and err.count("\n") == 1

@@ -280,12 +280,14 @@ def _ratio_chain(masses: list[float]) -> str:
     return CHAIN.format(links=links, joints=joints)
 
 
-@pytest.mark.parametrize("ratio", [1e-2, 1e-6])
+@pytest.mark.parametrize("ratio", [1e-2, 1e-5])
 def test_mass_ratio_along_a_chain(tmp_path, ratio):
     """Masses (and inertias) falling by ``ratio`` from link to link of a servoed chain: M spans
-    up to 18 decades. pinlin warns, carrying the mass-matrix condition estimate, exactly when
-    that estimate passes 1e10; the symmetric (K, M) eigensolver and the general one on A agree
-    within 10 kappa eps |A| per eigenvalue, and nothing is NaN."""
+    up to 15 decades (down to 1e-15 kg: below eps, 2.2e-16 kg, Pinocchio's inertia arithmetic
+    shrinks a link's centre-of-mass offset, and such URDFs are refused). pinlin warns, carrying
+    the mass-matrix condition estimate, exactly when that estimate passes 1e10; the symmetric
+    (K, M) eigensolver and the general one on A agree within 10 kappa eps |A| per eigenvalue,
+    and nothing is NaN."""
     urdf = tmp_path / "chain.urdf"
     urdf.write_text(_ratio_chain([ratio**i for i in range(4)]))
     scene = pinlin.Scene.from_urdf(urdf, effects={
