@@ -24,6 +24,7 @@ from .cli_format import (
     folder_name,
     format_matrix,
     format_poles,
+    options_named,
     plural,
     print_operating_point,
 )
@@ -102,11 +103,14 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     if out is not None:
         check_out(out, (".npz", ".mat", ".json"))
     scene = Scene.resolve(args.target)
-    model = linearize(scene, formulation=args.formulation, derivatives=args.derivatives,
-                      step=args.step,
-                      allow_non_equilibrium=True if args.allow_non_equilibrium else None,
-                      allow_ill_conditioned=args.allow_ill_conditioned,
-                      basis=args.basis, alpha=args.alpha, mu=args.mu, omega=args.omega)
+    with options_named({"alpha": "--alpha", "mu": "--mu", "omega": "--omega",
+                        "basis": "--basis", "step": "--step",
+                        "formulation": "--formulation", "derivatives": "--derivatives"}):
+        model = linearize(scene, formulation=args.formulation, derivatives=args.derivatives,
+                          step=args.step,
+                          allow_non_equilibrium=True if args.allow_non_equilibrium else None,
+                          allow_ill_conditioned=args.allow_ill_conditioned,
+                          basis=args.basis, alpha=args.alpha, mu=args.mu, omega=args.omega)
     modes = modal(model, method=args.method)    # refuses before anything is printed
     if out is not None:     # the file first: a failed write prints one line, not the table
         model.save(out)

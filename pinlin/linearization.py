@@ -296,6 +296,13 @@ def linearize(scene: Scene | System | str | Path, *,
     ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     system = _system(scene)
     _check_basis(system, form)
+    if not system.constraints:   # like basis: settings with nothing to act on are refused
+        for key, value in (("alpha", alpha), ("mu", mu), ("omega", omega)):
+            if value is not None:
+                raise ArgumentError(key, f"scene '{system.scene.name}' has no loops, contacts "
+                                         "or mimic couplings: the penalty and canonical "
+                                         "formulations' alpha, mu and omega have no "
+                                         "constraint to act on")
     q0 = _configuration(system, q)
     if q is not None:  # contacts hold their frames where this configuration puts them
         system = system.anchored_at(q0)

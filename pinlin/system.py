@@ -114,6 +114,12 @@ class System:
         self._build_kinematic_model()
         self.outputs = output_map(self)
         self.constraints = self._constraints()
+        if scene.operating_point.independent and not self.constraints:
+            # (a joint named there was never looked up: a misspelt name passed silently)
+            raise SceneError(scene.source, "operating_point.independent",
+                             "names the independent joints of loops, contacts or mimic "
+                             "couplings, and this scene has none: its joint coordinates are "
+                             "independent already; leave the key out")
 
     # ----------------------------------------------------------------------------------------
     @classmethod

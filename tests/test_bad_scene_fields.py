@@ -497,3 +497,28 @@ def test_scenes_changed_in_python_are_checked_like_files(case, field):
     axis spun the scene at 5 rad/s, text gravity a Boost.Python error."""
     with pytest.raises(pinlin.SceneError, match=f"field '{field}'"):
         _replaced(case=case)()
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["linearize", "pendulum", "--formulation", "penalty", "--alpha", "5"],
+     "argument '--alpha': scene 'pendulum' has no loops, contacts or mimic couplings"),
+    (["linearize", "four_bar", "--mu", "2"], "argument '--mu': alpha, mu and omega set"),
+])
+def test_settings_with_nothing_to_act_on_are_refused(argv, words, capfd):
+    """--alpha on an open chain was accepted and printed in the header, acting on nothing;
+    the library's argument names become the command's options."""
+    from pinlin.cli import main
+
+    assert main(argv) == 2
+    captured = capfd.readouterr()
+    assert words in captured.err and captured.out == ""
+
+
+def test_independent_joints_on_a_scene_without_constraints_are_refused(tmp_path):
+    """operating_point.independent on an open chain was never looked up: a misspelt joint
+    ('hinje') passed silently."""
+    path = tmp_path / "scene.toml"
+    path.write_text(f'urdf = "{URDF_DIR / "pendulum.urdf"}"\n'
+                    '[operating_point]\nindependent = ["hinje"]\n')
+    with pytest.raises(pinlin.SceneError, match="operating_point.independent.*has none"):
+        pinlin.linearize(str(path))
