@@ -148,18 +148,28 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
         method = args.discretization or "zoh"
         with options_named({"dt": "--dt", "method": "--discretization"}):
             model = model.discretize(args.dt, method)
-    print(f"{kind} of '{model.name}': {plural(n_points, 'point')}, "
-          f"{plural(len(model.state_names), 'state')}, "
-          f"{plural(len(model.input_names), 'input')}, "
-          f"{plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
-          f"derivatives ({model.info['path']}), {where}: {elapsed:.3g} s "
-          f"({1e6 * elapsed / n_points:.3g} us per point)")
+    lines = [f"{kind} of '{model.name}': {plural(n_points, 'point')}, "
+             f"{plural(len(model.state_names), 'state')}, "
+             f"{plural(len(model.input_names), 'input')}, "
+             f"{plural(len(model.output_names), 'output')}; {model.info['derivatives']} "
+             f"derivatives ({model.info['path']}), {where}: {elapsed:.3g} s "
+             f"({1e6 * elapsed / n_points:.3g} us per point)"]
+    loops = model.info.get("loops") or {}
+    moved = {key: float(np.max(loops[key], initial=0.0))
+             for key in ("position_correction", "velocity_correction") if key in loops}
+    if any(value > 0.0 for value in moved.values()):   # the states the models are about
+        lines.append(
+            "states moved onto the constraints (loops closed, velocities projected): largest "
+            f"change |dq| = {moved.get('position_correction', 0.0):.3g}, |dv| = "
+            f"{moved.get('velocity_correction', 0.0):.3g}; the models are about the moved "
+            "states (in the file's q, v)")
     if linearized.M is not None:
-        print("second-order matrices M, C_damp, K, Bu stored at every point")
+        lines.append("second-order matrices M, C_damp, K, Bu stored at every point")
     if args.dt is not None:
-        print(f"discretized: {method}, dt = {args.dt:g} s")
-    model.save(out)
-    print(f"models written to {out}")
+        lines.append(f"discretized: {method}, dt = {args.dt:g} s")
+    model.save(out)     # the file first: a failed write prints one line, not the summary
+    lines.append(f"models written to {out}")
+    print("\n".join(lines))
     return 0
 
 

@@ -236,3 +236,23 @@ def test_two_outputs_appear_together_or_not_at_all(capfd, tmp_path, monkeypatch)
     code, out, _ = run(capfd, "response", "pendulum", "--t-end", "0.1", "--x0", "hinge=0.1",
                        "--out", str(tmp_path / "r.csv"), "--plot", str(tmp_path / "r.png"))
     assert code == 0 and sorted(p.name for p in tmp_path.iterdir()) == ["r.csv", "r.png"]
+
+
+def test_trajectory_says_when_it_moved_the_given_states(capfd, tmp_path):
+    """A four-bar state off its loop (q and v violate the closure) is closed and projected
+    before it is linearized; the CLI said nothing about it (the correction sat in
+    info['loops'] only). An open chain's states are taken as given: no such line."""
+    states = tmp_path / "fb.npz"
+    np.savez(states, q=np.array([[1.0, 3.0, -2.0]]), v=np.array([[1.0, 5.0, 5.0]]),
+             u=np.zeros((1, 1)))
+    code, out, _ = run(capfd, "trajectory", "four_bar", str(states), "--out",
+                       str(tmp_path / "m.npz"), "--no-progress")
+    assert code == 0 and "states moved onto the constraints" in out
+    model = pinlin.TrajectoryModel.load(tmp_path / "m.npz")
+    change = float(out.split("|dq| = ")[1].split(",")[0])     # a norm of the tangent change
+    assert change >= float(np.abs(model.q[0] - [1.0, 3.0, -2.0]).max()) > 0.1
+    pend = tmp_path / "p.npz"
+    np.savez(pend, q=np.array([[0.3]]), v=np.array([[1.0]]), u=np.zeros((1, 1)))
+    code, out, _ = run(capfd, "trajectory", "pendulum", str(pend), "--out",
+                       str(tmp_path / "pm.npz"), "--no-progress")
+    assert code == 0 and "states moved" not in out
