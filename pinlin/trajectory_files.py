@@ -108,6 +108,9 @@ def _read_npz_states(path: Path, raw: bytes
     try:
         _check_npy_headers(path, raw)
         with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+            if len(set(z.files)) != len(z.files):   # a dict would keep the last silently
+                twice = next(k for k in z.files if z.files.count(k) > 1)
+                raise ModelFileError(path, f"member '{twice}' appears twice in the archive")
             doc = {k: z[k] for k in z.files}
     except ModelFileError:
         raise
@@ -129,6 +132,9 @@ def _read_npz_states(path: Path, raw: bytes
             raise ModelFileError(path, f"member '{key}' is a single number; expected an array "
                                        f"of shape {_SHAPES[key]}, one row per point")
     t = doc.get("t")
+    if t is not None and t.ndim > 1:     # (N, 1) or (2, 2) was flattened, as the API refuses
+        raise ModelFileError(path, f"member 't' must be a list of times (N,), got shape "
+                                   f"{t.shape}")
     return doc["q"], doc.get("v"), doc.get("u"), (None if t is None else t.reshape(-1))
 
 

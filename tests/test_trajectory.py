@@ -547,6 +547,9 @@ def test_cli_refuses_bad_csv_rows(text, words, tmp_path, capfd):
 
 @pytest.mark.parametrize("arrays, argv, words", [
     ({"q": np.zeros((2, 6)), "v": np.zeros((2, 6))}, [], "missing 'u'"),
+    # (a t of shape (N, 1) was flattened, which linearize_trajectory itself refuses)
+    ({"q": np.zeros((2, 6)), "v": np.zeros((2, 6)), "u": np.zeros((2, 6)),
+      "t": np.zeros((2, 1))}, [], "member 't' must be a list of times (N,), got shape (2, 1)"),
     ({"q": np.zeros((2, 6)), "v": np.zeros((2, 6)), "u": np.zeros((2, 6)),
       "w": np.zeros(2)}, [], "unknown member 'w'"),
     ({"q": np.zeros((2, 5)), "v": np.zeros((2, 6)), "u": np.zeros((2, 6))}, [],
@@ -622,3 +625,21 @@ def test_a_trajectory_too_large_to_copy_is_a_resource_error():
     q = np.broadcast_to(pin.neutral(scene.system.model), (10**9, scene.system.nq))
     with pytest.raises(pinlin.ResourceError, match=r"argument 'q' .* shape \(1000000000, 19\)"):
         pinlin.linearize_trajectory(scene, q)
+
+
+def test_states_archive_with_a_member_twice_is_refused(tmp_path, capfd):
+    """zip allows a name twice; the last q was taken silently."""
+    import io
+    import warnings
+    import zipfile
+
+    path = tmp_path / "traj.npz"
+    np.savez(path, q=np.zeros((2, 6)), v=np.zeros((2, 6)), u=np.zeros((2, 6)))
+    buf = io.BytesIO()
+    np.save(buf, np.ones((2, 6)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)     # zipfile: "Duplicate name"
+        with zipfile.ZipFile(path, "a") as z:
+            z.writestr("q.npy", buf.getvalue())
+    assert main(["trajectory", "ur5", str(path), "--out", str(tmp_path / "m.npz")]) == 2
+    assert "member 'q' appears twice" in capfd.readouterr().err
