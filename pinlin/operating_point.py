@@ -119,7 +119,29 @@ def _configuration_from(system: System, spec: Mapping[str, Any]) -> np.ndarray:
         fld = f"operating_point.q.{name}"
         j = system.joint(name, fld)
         q[j.idx_q:j.idx_q + j.nq] = _joint_configuration(system, j, value, q, fld)
+    _check_wound_springs(system, spec, q)
     return q
+
+
+def _check_wound_springs(system: System, spec: Mapping[str, Any], q: np.ndarray) -> None:
+    """Refuse a spring on a continuous joint whose deflection q0 - rest lies beyond pi: the
+    joint's configuration (cos, sin) has no winding count, so the spring acts on the angle
+    difference wrapped to (-pi, pi] (pinocchio's difference), which differs from
+    -k (q - rest) exactly there (rest = 10 rad at q0 = 0 gave 20 (10 - 4 pi) instead of 200)."""
+    for name, spring in (system.scene.effects.springs or {}).items():
+        j = system.joints.get(name)
+        if j is None or not j.continuous:
+            continue
+        value = spec.get(name)
+        angle = (float(value) if isinstance(value, float | int) else
+                 math.atan2(q[j.idx_q + 1], q[j.idx_q]))
+        if abs(angle - spring.rest) > math.pi:
+            raise SceneError(system.scene.source, f"effects.springs.{name}.rest",
+                             f"joint '{name}' is continuous: its angle is known modulo 2 pi, "
+                             f"so its spring acts on q - rest wrapped to (-pi, pi], and "
+                             f"q0 - rest = {angle - spring.rest:.6g} rad lies beyond pi; give "
+                             "a rest within pi of q0, or make the joint revolute for a wound "
+                             "spring")
 
 
 def _joint_configuration(system: System, j: JointInfo, value: Any, q: np.ndarray,

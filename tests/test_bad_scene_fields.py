@@ -522,3 +522,24 @@ def test_independent_joints_on_a_scene_without_constraints_are_refused(tmp_path)
                     '[operating_point]\nindependent = ["hinje"]\n')
     with pytest.raises(pinlin.SceneError, match="operating_point.independent.*has none"):
         pinlin.linearize(str(path))
+
+
+def test_a_wound_spring_on_a_continuous_joint_is_refused(tmp_path):
+    """A continuous joint's angle has no winding count: its spring acts on q - rest wrapped to
+    (-pi, pi]. rest = 10 rad at q0 = 0 gave u0 = 20 (10 - 4 pi) = 51.3 N*m where the stated
+    law -k (q - rest) needs -200: refused, naming the spring. Within pi the law holds: rest
+    0.5 rad, k = 20 N*m/rad, no gravity: the input holds k (q0 - rest) = -10 N*m."""
+    urdf = tmp_path / "cpend.urdf"
+    text = (URDF_DIR / "pendulum.urdf").read_text().replace('type="revolute"',
+                                                           'type="continuous"')
+    urdf.write_text("\n".join(line for line in text.splitlines() if "<limit" not in line))
+    scene = tmp_path / "scene.toml"
+    for rest, q0 in ((10.0, 0.0), (0.0, 3.5)):
+        scene.write_text(f'urdf = "{urdf}"\n[effects]\nsprings = {{ hinge = {{ stiffness = 20.0, '
+                         f'rest = {rest} }} }}\n[operating_point]\nq = {{ hinge = {q0} }}\n')
+        with pytest.raises(pinlin.SceneError, match=r"effects.springs.hinge.rest.*continuous"):
+            pinlin.linearize(str(scene))
+    scene.write_text(f'urdf = "{urdf}"\n[effects]\nsprings = {{ hinge = {{ stiffness = 20.0, '
+                     'rest = 0.5 } }\n[operating_point]\nq = { hinge = 0.0 }\n')
+    model = pinlin.linearize(str(scene))
+    assert model.operating_point.u == pytest.approx([-10.0], abs=1e-12)
