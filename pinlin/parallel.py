@@ -53,7 +53,7 @@ import numpy as np
 
 from . import exceptions
 from .batch import Layout, Options, fill
-from .exceptions import PinlinError
+from .exceptions import ArgumentError, PinlinError
 from .scene import Scene
 from .system import System
 
@@ -314,9 +314,12 @@ def run_executor(system: System, layout: Layout, inputs: Mapping[str, np.ndarray
     blob, key = share(system.scene)
     arrays = {**layout.allocate(), **{name: inputs[name] for name in layout.inputs}}
     part = replace(layout, points=0)  # the chunk's size comes with its rows
-    futures = {executor.submit(_chunk_task, blob, key, part,
-                               {name: inputs[name][lo:hi] for name in layout.inputs},
-                               options): (lo, hi) for lo, hi in _chunks(N, chunk)}
+    try:
+        futures = {executor.submit(_chunk_task, blob, key, part,
+                                   {name: inputs[name][lo:hi] for name in layout.inputs},
+                                   options): (lo, hi) for lo, hi in _chunks(N, chunk)}
+    except RuntimeError as exc:   # "cannot schedule new futures after shutdown"
+        raise ArgumentError("executor", f"cannot take work: {exc}") from None
 
     def take(result: dict[str, Any], lo: int, hi: int) -> None:
         if "error" in result:

@@ -643,3 +643,14 @@ def test_states_archive_with_a_member_twice_is_refused(tmp_path, capfd):
             z.writestr("q.npy", buf.getvalue())
     assert main(["trajectory", "ur5", str(path), "--out", str(tmp_path / "m.npz")]) == 2
     assert "member 'q' appears twice" in capfd.readouterr().err
+
+
+def test_an_executor_already_shut_down_is_an_argument_error():
+    """concurrent.futures raises RuntimeError on submit after shutdown; it came through raw."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(1)
+    pool.shutdown()
+    with pytest.raises(pinlin.ArgumentError, match="argument 'executor': cannot take work"):
+        pinlin.linearize_trajectory("pendulum", np.zeros((3, 1)), np.zeros((3, 1)),
+                                    np.zeros((3, 1)), executor=pool)
