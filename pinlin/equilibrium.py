@@ -30,6 +30,7 @@ vertical force against the weight, and a point contact that pulls gets a Contact
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -97,6 +98,19 @@ def static_stiffness(system, q: np.ndarray, lam: np.ndarray | None) -> np.ndarra
     if lam is not None and system.constraints:
         K -= system.constraints.hessian(q, lam)
     return K
+
+
+def _moved_positions(system, given: Mapping[str, Any], q_guess: np.ndarray,
+                     q0: np.ndarray) -> str:
+    """The 1-DoF joints ``given`` names whose position the assembly moved (beyond 1e-9 rad or
+    m), with the change, or "" [rad or m]."""
+    diff = pin.difference(system.model, q_guess, q0)
+    out = []
+    for name in given:
+        j = system.joints.get(name)
+        if j is not None and j.nv == 1 and abs(diff[j.idx_v]) > 1e-9:
+            out.append(f"{name} by {diff[j.idx_v]:+.6g}")
+    return ", ".join(out)
 
 
 def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: bool = False,
@@ -200,6 +214,12 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
               or "none (the constraints hold every coordinate)")
         notes.append(f"independent coordinates{' (chosen by pinlin)' if part.chosen else ''}: "
                      f"{zn}")
+        if spec.solve != "positions":   # (that mode's note says how far q0 moved)
+            moved = _moved_positions(system, spec.q, q_guess, q0)
+            if moved:
+                notes.append("joint positions the scene gives, moved to close the loops "
+                             "(dependent coordinates: a given value is only their starting "
+                             f"guess): {moved}")
         if part.dropped:
             notes.append(f"redundant constraint rows left out of the coordinates: "
                          f"{', '.join(part.dropped)}"

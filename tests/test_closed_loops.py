@@ -646,3 +646,24 @@ def test_penalty_spectra_float64_cannot_hold_are_warned_not_called_rigid(options
         quiet = pinlin.modal(pinlin.linearize("four_bar", formulation="penalty"))
     kept = [i for i in range(len(quiet.eigenvalues)) if not quiet.constraint[i]]
     np.testing.assert_allclose(np.abs(quiet.eigenvalues[kept]), reference, rtol=1e-5)
+
+
+def test_a_given_position_that_the_assembly_moved_is_noted():
+    """The four-bar's scene gives coupler and rocker angles as starting guesses; pinlin keeps
+    the crank and closes the loop by moving them. The model said which coordinates it kept,
+    not that the given values had moved: now a note names each with its change, and the
+    changes are the differences between the scene's q and the assembled q0."""
+    from pinlin.operating_point import configuration
+
+    scene = pinlin.Scene.resolve("four_bar")
+    model = pinlin.linearize(scene)
+    q0 = model.operating_point.q
+
+
+    q_given = configuration(scene.system)
+    diff = pin.difference(scene.system.model, q_given, q0)
+    note = next(n for n in model.operating_point.notes if n.startswith("joint positions"))
+    for name in ("coupler", "rocker"):
+        j = scene.system.joints[name]
+        assert f"{name} by {diff[j.idx_v]:+.6g}" in note and abs(diff[j.idx_v]) > 1e-3
+    assert "crank" not in note
