@@ -658,8 +658,6 @@ def test_a_given_position_that_the_assembly_moved_is_noted():
     scene = pinlin.Scene.resolve("four_bar")
     model = pinlin.linearize(scene)
     q0 = model.operating_point.q
-
-
     q_given = configuration(scene.system)
     diff = pin.difference(scene.system.model, q_given, q0)
     note = next(n for n in model.operating_point.notes if n.startswith("joint positions"))
