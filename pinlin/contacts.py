@@ -124,7 +124,9 @@ def limb_conditions(system, q: np.ndarray) -> dict[str, float]:
     """Contact name -> condition number of the contact frame's Jacobian (its 3 or 6 rows) with
     respect to the coordinates of the joints that move it, a floating base's own excluded
     (the largest over the smallest of its min(rows, columns) singular values; inf when one is
-    zero). Contacts on the base itself (no joint between) are left out."""
+    zero), rows the limb cannot move at a generic nearby posture either (structure, such as
+    a planar chain's out-of-plane row) left out. Contacts on the base itself (no joint
+    between) are left out."""
     cons = system.constraints
     if not cons.contacts:
         return {}
@@ -132,6 +134,10 @@ def limb_conditions(system, q: np.ndarray) -> dict[str, float]:
     offset = kin.njoints - system.model.njoints  # a rotating scene's spin joint comes first
     base = system.joints[system.base_joint].id if system.base_joint is not None else None
     jac = cons.jacobian(q)
+    # The Jacobian at a generic nearby posture too: a row no joint of a limb moves there either
+    # is the limb's structure (a planar chain's out-of-plane row), not a singular posture.
+    wiggle = 0.1 * np.sin(np.arange(1, system.nv + 1))
+    jac_elsewhere = cons.jacobian(pin.integrate(system.model, q, wiggle))
     out: dict[str, float] = {}
     for contact in cons.contacts:
         cols: list[int] = []
@@ -143,8 +149,14 @@ def limb_conditions(system, q: np.ndarray) -> dict[str, float]:
             cols.extend(range(jm.idx_v, jm.idx_v + jm.nv))
         if not cols:
             continue
-        sv = np.linalg.svd(jac[np.array(contact.rows)][:, cols], compute_uv=False)
-        smallest = sv[min(len(contact.rows), len(cols)) - 1]
+        rows = np.array(contact.rows)
+        block = jac[rows][:, cols]
+        reach = np.abs(jac_elsewhere[rows][:, cols]).max(axis=1)
+        block = block[reach > 1e-12 * reach.max(initial=0.0)]   # structural rows left out
+        if not block.shape[0]:
+            continue
+        sv = np.linalg.svd(block, compute_uv=False)
+        smallest = sv[min(block.shape[0], len(cols)) - 1]
         out[contact.name] = float(sv[0] / smallest) if smallest > 0.0 else float("inf")
     return out
 

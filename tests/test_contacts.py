@@ -584,3 +584,35 @@ def test_bad_contacts_give_one_line_and_exit_2(case, write_scene, capfd, tmp_pat
     assert err.count("\n") == 1 and err.startswith("pinlin: error: ")
     assert fragment in err, err
     assert "Traceback" not in err and not out_file.exists()
+
+
+TRI_URDF = """<?xml version="1.0"?><robot name="tri"><link name="base"/>{links}{joints}
+<link name="tip"/><joint name="tipj" type="fixed"><parent link="l3"/><child link="tip"/>
+<origin xyz="0.5 0 0"/></joint></robot>"""
+
+
+@pytest.mark.parametrize("posture, warns", [((-0.5, 1.2, 0.9), False), ((-0.5, 0.0, 0.0), True)])
+def test_planar_limb_warns_only_when_straight(tmp_path, posture, warns):
+    """A planar 3R chain (axes along y) with its tip held: the contact's y row is zero at every
+    posture (the limb cannot move the tip out of its plane), which made the limb condition
+    infinite and warned "straight knee" at any posture. That row is structure, left out: bent,
+    the in-plane 2 x 3 Jacobian has full rank (no warning); stretched straight, its rank
+    drops (the warning stays)."""
+    inertial = ('<inertial><origin xyz="0.25 0 0"/><mass value="1"/><inertia ixx="0.01" '
+                'ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.02"/></inertial>')
+    links = "".join(f'<link name="l{i}">{inertial}</link>' for i in (1, 2, 3))
+    joints = "".join(
+        f'<joint name="j{i}" type="revolute"><parent link="{"base" if i == 1 else f"l{i - 1}"}"/>'
+        f'<child link="l{i}"/><origin xyz="{0 if i == 1 else 0.5} 0 0"/><axis xyz="0 1 0"/>'
+        '<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>' for i in (1, 2, 3))
+    (tmp_path / "tri.urdf").write_text(TRI_URDF.format(links=links, joints=joints))
+    q = ", ".join(f"j{i} = {a}" for i, a in zip((1, 2, 3), posture, strict=True))
+    (tmp_path / "tri.toml").write_text(
+        'urdf = "tri.urdf"\n[effects]\ngravity = [0.0, 0.0, -9.81]\n[[contacts]]\n'
+        'name = "foot"\nframe = "tip"\ntype = "point"\n'
+        f'[operating_point]\nq = {{ {q} }}\n[inputs]\nactuated = ["j1", "j2", "j3"]\n')
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pinlin.linearize(str(tmp_path / "tri.toml"))
+    limb = [w for w in caught if "singular posture" in str(w.message)]
+    assert bool(limb) == warns
