@@ -81,6 +81,19 @@ def chart_angles(system: System) -> list[np.ndarray]:
     return angles
 
 
+def beyond_chart(c: np.ndarray, angles: list[np.ndarray]) -> bool:
+    """Whether a rotation angle of the chart coordinates ``c`` (:func:`chart_angles`) exceeds
+    :data:`CHART_LIMIT`: the chart is re-centred after such a step."""
+    return any(np.linalg.norm(c[i]) > CHART_LIMIT for i in angles)
+
+
+def chart_rate(model: pin.Model, q_ref: np.ndarray, q: np.ndarray, v: np.ndarray,
+               lie: bool) -> np.ndarray:
+    """d/dt of the chart coordinates c = difference(q_ref, q): ``pin.dDifference(q_ref, q,
+    ARG1) v`` (v itself when every joint is a vector space, ``lie`` False)."""
+    return pin.dDifference(model, q_ref, q, pin.ArgumentPosition.ARG1) @ v if lie else v
+
+
 class OpenChain:
     """s = (dq, v) in the chart about q_ref (module docstring)."""
 
@@ -107,16 +120,14 @@ class OpenChain:
         else:
             a = sla.solve(system.mass_matrix(q), tau - system.rnea(q, v, np.zeros(nv)),
                           assume_a="pos")
-        qdot = pin.dDifference(self.model, self.q_ref, q, pin.ArgumentPosition.ARG1) @ v \
-            if self.lie else v
-        return np.concatenate([qdot, a])
+        return np.concatenate([chart_rate(self.model, self.q_ref, q, v, self.lie), a])
 
     def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return pin.integrate(self.model, self.q_ref, s[:self.nv]), s[self.nv:].copy()
 
     def after_step(self, s: np.ndarray) -> tuple[np.ndarray, str] | None:
         """A re-centred state when the chart's angles exceed CHART_LIMIT, else None."""
-        if not any(np.linalg.norm(s[i]) > CHART_LIMIT for i in self.angles):
+        if not beyond_chart(s, self.angles):
             return None
         self.q_ref = pin.integrate(self.model, self.q_ref, s[:self.nv])
         return np.concatenate([np.zeros(self.nv), s[self.nv:]]), "chart"
@@ -162,10 +173,8 @@ class Mechanism:
         q, v = self.state(s)
         self._where = _ALONG
         if self.lie:  # the chart starts at q: dDifference's log map wraps angles beyond pi
-            self.q_ref = q.copy()
-            cz, c, q, G, R = self.cache
-            self.cache = (np.zeros(nz), np.zeros(nv), q, G, R)
-            s = np.concatenate([np.zeros(nz), s[nz:]])
+            G, R = self.cache[3:]       # q's, from self.state(s)
+            s = self._recentre(q, G, R, v)
         notes = []
         if dx0.size == 2 * nv and np.any(dx0):
             dq = pin.difference(self.model, pin.integrate(self.model, self.op.q, dx0[:nv]), q)
@@ -213,6 +222,14 @@ class Mechanism:
         self.cache = (cz.copy(), c, q, G, R)
         return q, G, R
 
+    def _recentre(self, q: np.ndarray, G: np.ndarray, R: np.ndarray, v: np.ndarray
+                  ) -> np.ndarray:
+        """Centre the chart at the configuration q (q_ref := q, c := 0; G and R are q's) and
+        return the state there, (0, v[z])."""
+        self.q_ref = q.copy()
+        self.cache = (np.zeros(self.z.size), np.zeros(self.nv), q, G, R)
+        return np.concatenate([np.zeros(self.z.size), v[self.z]])
+
     def _basis(self, G: np.ndarray) -> np.ndarray:
         """Partitioned nullspace basis R (nv x nz): R[z] = I, G R = 0."""
         R = np.zeros((self.nv, self.z.size))
@@ -245,8 +262,7 @@ class Mechanism:
             raise ModelError(f"scene '{self.system.scene.name}': the equations of motion are "
                              f"singular {self._where[0]} (M singular on the constraints' "
                              "nullspace)") from None
-        cdot = pin.dDifference(self.model, self.q_ref, q, pin.ArgumentPosition.ARG1) @ v \
-            if self.lie else v
+        cdot = chart_rate(self.model, self.q_ref, q, v, self.lie)
         return np.concatenate([cdot[self.z], a[self.z]])
 
     def after_step(self, s: np.ndarray) -> tuple[np.ndarray, str] | None:
@@ -258,11 +274,8 @@ class Mechanism:
         number in the dependent coordinates."""
         q, G, R = self._configure(s)
         v = R @ s[self.z.size:]
-        c = self.cache[1]
-        if any(np.linalg.norm(c[i]) > CHART_LIMIT for i in self.angles):
-            self.q_ref = q.copy()
-            self.cache = (np.zeros(self.z.size), np.zeros(self.nv), q, G, R)
-            return np.concatenate([np.zeros(self.z.size), v[self.z]]), "chart"
+        if beyond_chart(self.cache[1], self.angles):
+            return self._recentre(q, G, R, v), "chart"
         if not self.d.size:
             return None
         current = np.linalg.cond(G[:, self.d])

@@ -135,7 +135,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pinlin/response.py", "    _check_finite(model, t, x, y)\n    return _result",
         "    return _result", "a response beyond float64's range returned with inf/NaN"),
     "outputs_replace_any_file": (
-        "pinlin/files.py", "    check_replaceable(path, target)\n", "",
+        "pinlin/files.py", "    check_replaceable(path, target, kind)\n", "",
         "an output replaces whatever file (or link target) has its name"),
     "figure_anchors_at_origin": (
         "pinlin/stick_figure.py", "self._anchors[ident] if kind == \"anchor\" else",
@@ -191,8 +191,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "a penalty model's finite-difference error estimate divided by max |A|"),
     "standing_chart_jacobian_dropped": (
         "pinlin/simulation_ode.py",
-        "        cdot = pin.dDifference(self.model, self.q_ref, q, pin.ArgumentPosition.ARG1)"
-        " @ v \\\n            if self.lie else v\n",
+        "        cdot = chart_rate(self.model, self.q_ref, q, v, self.lie)\n",
         "        cdot = v\n",
         "a standing robot's simulation integrates the base's tangent velocity as if its chart "
         "were additive"),
