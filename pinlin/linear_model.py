@@ -30,14 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import non_numbers
+from .arrays import non_numbers, sum_of_squares
 from .exceptions import ArgumentError, ModelError, PinlinError, ShapeError
 from .files import as_path, check_file_target, write_bytes_atomic
 from .model_files import MATRICES, NAME_FIELDS, jsonable, model_format, read_model, serialize
 from .operating_point import OperatingPoint
 
 _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
-_vdot = np.vdot
 _jsonable = jsonable  # its name here before pinlin.model_files
 
 
@@ -165,13 +164,10 @@ def _check_finite(fields: Mapping[str, Any], model: str) -> None:
     """
     total = 0.0
     known = _FINITE.get
-    vdot = _vdot
     for arr in map(fields.get, MATRICES):
         if arr is None or known(id(arr)) is arr:
             continue
-        # ddot needs C order: a column-major array (Pinocchio's M) is read as its transpose,
-        # the same entries, instead of being copied.
-        total += vdot(arr, arr) if arr.flags.c_contiguous else vdot(arr.T, arr.T)
+        total += sum_of_squares(arr)
     if math.isfinite(total):
         return
     for key in MATRICES:

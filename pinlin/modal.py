@@ -51,6 +51,7 @@ from numpy.linalg import LinAlgError
 
 from . import eigensolvers as es
 from . import modal_table
+from .arrays import sum_of_squares
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 
@@ -410,8 +411,7 @@ def _check_entries(model: LinearModel) -> float:
         mat = getattr(model, key)
         if mat is None or mat.size == 0:
             continue
-        # (BLAS reads C order: a column-major matrix, Pinocchio's M, through its transpose)
-        total = float(np.vdot(mat, mat) if mat.flags.c_contiguous else np.vdot(mat.T, mat.T))
+        total = sum_of_squares(mat)
         if key == "A":
             a2 = total
         if total <= limit2:  # NaN compares False (BLAS ddot: no FP warnings)
