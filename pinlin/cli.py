@@ -204,14 +204,21 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
                                   "another output name")
     check_file_target(out)
     ms = build(scene.system, dt=dt)
+    op = None   # the linear model's point (it checks dt); without one, no keyframe
     try:
-        op = operating_point(scene, allow_non_equilibrium=True)
-    except PinlinError:     # the model stands without it: say where to find out why
-        op, key = None, "; no keyframe: pinlin linearize says why the operating point is refused"
+        model = linearize(scene, allow_non_equilibrium=True)
+    except PinlinError as exc:
+        try:
+            operating_point(scene, allow_non_equilibrium=True)
+        except PinlinError:     # the model stands without it: say where to find out why
+            key = "; no keyframe: pinlin linearize says why the operating point is refused"
+        else:
+            raise exc from None     # the point stands, its linear model does not
     else:
+        op = model.operating_point
         key = ("; keyframe 'operating_point' holds q0, v0"
                + (" and the inputs u0 (ctrl of its motors)" if op.u.size else ""))
-        check_resolved(linearize(scene, allow_non_equilibrium=True), dt, "--dt")
+        check_resolved(model, dt, "--dt")
     xml = to_xml(ms, scene.system, *((op.q, op.v) if op is not None else ()),
                  u=op.u if op is not None else None)
     write_text_atomic(out, xml)

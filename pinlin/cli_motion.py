@@ -299,6 +299,23 @@ def _plot_histories(path: Path, title: str, t: np.ndarray,
     write_bytes_atomic(path, buf.getvalue())
 
 
+def _write_results(out: Path | None, plot: Path | None, t: np.ndarray,
+                   columns: dict[str, np.ndarray], title: str,
+                   curves: list[tuple[str, np.ndarray, np.ndarray, str]]) -> list[str]:
+    """The time histories (``--out``) and their plot (``--plot``), both or neither
+    (:func:`pinlin.files.all_or_nothing`), before anything is printed: a failed write prints
+    one line, not the result. The lines that say what was written."""
+    written = []
+    with all_or_nothing():
+        if out is not None:
+            _write_history(out, t, columns)
+            written.append(f"time histories written to {out}")
+        if plot is not None:
+            _plot_histories(plot, title, t, curves)
+            written.append(f"plot written to {plot}")
+    return written
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .formulations.constrained import constrained_effects
     from .linearization import linearize
@@ -327,18 +344,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                       in zip(sim.independent_names[:n], sim.z[-1, :n], strict=True))
     lines.append(f"final deviation: "
                  f"{final or 'none (no states: the constraints hold everything)'}")
-    states = {name: sim.z[:, k] for k, name in enumerate(sim.independent_names)}
-    # The files first (both, or neither): a failed write prints one line, not the result.
-    with all_or_nothing():
-        if out is not None:
-            outputs = {f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)}
-            _write_history(out, sim.t, {**states, **outputs})
-            lines.append(f"time histories written to {out}")
-        if plot is not None:
-            _plot_histories(plot, f"{scene.name}: nonlinear simulation", sim.t,
+    columns = {name: sim.z[:, k] for k, name in enumerate(sim.independent_names)}
+    columns.update({f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)})
+    lines += _write_results(out, plot, sim.t, columns, f"{scene.name}: nonlinear simulation",
                             [(name, sim.t, sim.z[:, k], "-")
                              for k, name in enumerate(sim.independent_names[:n])])
-            lines.append(f"plot written to {plot}")
     print("\n".join(lines))
     return 0
 
@@ -406,16 +416,8 @@ def _cmd_response(args: argparse.Namespace) -> int:
                    for k, name in enumerate(sim.independent_names[:n])]
         columns.update({f"nl:{name}": sim.z[:, k]
                         for k, name in enumerate(sim.independent_names)})
-    # The files first (both, or neither): a failed write prints one line, not the result.
-    with all_or_nothing():
-        if out is not None:
-            _write_history(out, res.t, columns)
-            lines.append(f"time histories written to {out}")
-        if plot is not None:
-            _plot_histories(plot, f"{model.name}: linear response"
-                            + (" and nonlinear simulation" if args.nonlinear else ""), res.t,
-                            curves)
-            lines.append(f"plot written to {plot}")
+    lines += _write_results(out, plot, res.t, columns, f"{model.name}: linear response"
+                            + (" and nonlinear simulation" if args.nonlinear else ""), curves)
     print("\n".join(lines))
     return 0
 

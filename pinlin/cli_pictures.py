@@ -39,8 +39,6 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     if args.mode is not None and png is None and gif is None:
         raise ArgumentError("--mode", "chooses the modes to draw: give --plot FILE.png or "
                                       "--gif FILE.gif as well")
-    if args.mode is not None and len(set(args.mode)) != len(args.mode):
-        raise ArgumentError("--mode", f"names a mode twice: {' '.join(map(str, args.mode))}")
     scene, model, modes = _linearize(args)
     indices = mode_rows(modes, args.mode, "--mode")
     if (png or gif) and indices is None and not default_modes(modes):

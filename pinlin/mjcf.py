@@ -331,11 +331,8 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
         set_state(ms, system, q, v, np.zeros(system.nv))
         qpos, qvel = ms.data.qpos.copy(), ms.data.qvel.copy()
         spec = ms.spec.copy()    # the key goes into the file, not into ms's own spec
-        ctrl = _motors(spec, system, u) if u is not None else None
-        if ctrl is not None and ctrl.size:
-            spec.add_key(name=key, qpos=qpos, qvel=qvel, ctrl=ctrl)
-        else:
-            spec.add_key(name=key, qpos=qpos, qvel=qvel)
+        ctrl = _motors(spec, system, u) if u is not None and u.size else None
+        spec.add_key(name=key, qpos=qpos, qvel=qvel, **({} if ctrl is None else {"ctrl": ctrl}))
     try:
         xml = spec.to_xml()
     except Exception as exc:  # noqa: BLE001  MuJoCo raises ValueError or RuntimeError
@@ -368,10 +365,8 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
         xml = _exact_attributes(xml, f'<site name="{name}"',
                                 {"pos": m.site_pos[i], "quat": m.site_quat[i]})
     if q is not None:
-        exact = {"qpos": qpos, "qvel": qvel}
-        if ctrl is not None and ctrl.size:
-            exact["ctrl"] = ctrl
-        xml = _exact_attributes(xml, f'<key name="{key}"', exact)
+        xml = _exact_attributes(xml, f'<key name="{key}"', {
+            "qpos": qpos, "qvel": qvel, **({} if ctrl is None else {"ctrl": ctrl})})
     name = system.scene.name.replace("--", "- -")    # "--" may not appear in a comment
     return f"{MJCF_MARKER} from scene '{name}' -->\n" + xml
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import ArgumentError
-from .files import PNG_METADATA, check_file_target, make_folder, write_bytes_atomic
+from .files import PNG_METADATA, all_or_nothing, make_folder, write_bytes_atomic
 from .linear_model import LinearModel
 from .modal import ModalAnalysis
 
@@ -247,10 +247,9 @@ def plot(result: Validity, folder: str | Path, stem: str) -> tuple[Path, Path]:
     matplotlib.use("Agg")
     folder = make_folder(folder)
     paths = plot_paths(folder, stem)
-    for path in paths:      # both refused before either is written
-        check_file_target(path)
-    _save(_histories(result), paths[0])
-    _save(_errors(result), paths[1])
+    with all_or_nothing():      # both figures, or neither
+        _save(_histories(result), paths[0])
+        _save(_errors(result), paths[1])
     return paths
 
 
