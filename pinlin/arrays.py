@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .exceptions import ArgumentError
+
 
 def read_only(arr: np.ndarray) -> np.ndarray:
     """Mark ``arr`` read-only and return it. A LinearModel shares read-only arrays instead of
@@ -79,3 +81,23 @@ def non_numbers(value: object) -> str | None:
         if isinstance(item, complex | np.complexfloating):
             return "complex entries"
     return None
+
+
+def real_array(value: object, name: str, expected: str) -> np.ndarray:
+    """``value`` as a new float64 array of real numbers (any shape: the caller checks it, and
+    finiteness).
+
+    Raises:
+        ArgumentError: naming ``name``: "expected <expected>, got complex entries" (booleans,
+            text, masked entries: :func:`non_numbers`; ``np.array(v, dtype=float)`` would drop
+            the imaginary parts or read them as numbers), or what numpy cannot read as numbers
+            (a dict, a ragged list, an int beyond float64).
+    """
+    bad = non_numbers(value)
+    if bad:
+        raise ArgumentError(name, f"expected {expected}, got {bad}")
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentError(name, f"expected {expected}, got {type(value).__name__} "
+                                  f"{value!r:.60}") from None

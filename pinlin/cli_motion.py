@@ -407,7 +407,8 @@ def _cmd_response(args: argparse.Namespace) -> int:
     if args.nonlinear:
         from .simulation import simulate
 
-        sim = simulate(scene, t, dx0=x0)
+        with options_named({"dx0": "--x0"}):
+            sim = simulate(scene, t, dx0=x0)
         diff = np.abs(sim.z - res.x).max(initial=0.0)
         scale = max(float(np.abs(res.x).max(initial=0.0)), np.finfo(float).tiny)
         lines.append(f"nonlinear simulation from the same state: max |x_nl - x_lin| = "

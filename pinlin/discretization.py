@@ -25,7 +25,6 @@ continuous model (M, C_damp, K, Bu) are not carried over, since they describe it
 
 from __future__ import annotations
 
-import math
 import warnings
 
 import numpy as np
@@ -41,15 +40,19 @@ WARN_ZOH_ERROR = 1e-6
 _EPS = float(np.finfo(float).eps)
 
 
+FLOAT_MAX = float(np.finfo(float).max)
+
+
 def check_step(dt: object, method: object) -> float:
     """``dt`` [s] as a float, and ``method`` one of :data:`METHODS`.
 
     Raises:
         ArgumentError: ``dt`` not a positive finite number [s], or an unknown method.
     """
-    if isinstance(dt, bool) or not isinstance(dt, int | float | np.integer | np.floating) \
-            or not (math.isfinite(dt) and dt > 0):
-        raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r}")
+    if isinstance(dt, bool | np.bool_) or \
+            not isinstance(dt, int | float | np.integer | np.floating) \
+            or not 0 < dt <= FLOAT_MAX:   # (an int beyond float64 compares exactly)
+        raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r:.60}")
     if not isinstance(method, str) or method not in METHODS:
         raise ArgumentError("method", f"expected one of {', '.join(map(repr, METHODS))}, got "
                                       f"{method!r}")
@@ -64,7 +67,8 @@ def discretize(model, dt: float, method: str = "zoh"):
         ArgumentError: ``dt`` not a positive finite number [s], an unknown method, a model
             already discrete, or ``"euler"`` on a model whose states are not [q:...; v:...].
         ModelError: the model has input-derivative terms (E): discretize its standard form;
-            or ``dt`` so long that a discrete matrix overflows (:func:`refuse_overflow`).
+            an output term F u' (held samples have no derivative); or ``dt`` so long
+            that a discrete matrix overflows (:func:`refuse_overflow`).
     """
     from .linear_model import LinearModel
 
@@ -75,6 +79,11 @@ def discretize(model, dt: float, method: str = "zoh"):
     if model.E is not None and np.any(model.E):
         raise ModelError(f"model '{model.name}' has input-derivative terms (E u'): discretize "
                          "model.standard_form() instead, whose state is x - E u")
+    if model.F is not None and np.any(model.F):
+        raise ModelError(f"model '{model.name}' has an output term F u' (input derivative): a "
+                         "discrete model's inputs are held samples, which have no derivative; "
+                         "discretize a model without it, or simulate the continuous one with a "
+                         "Signal (pinlin.response)")
     dt = float(dt)
     n, m = model.B.shape
     f0 = np.zeros(n) if model.f0 is None else model.f0

@@ -94,15 +94,45 @@ def geev_lwork(n: int, left: bool) -> int:
     return int(work)
 
 
-def geev(A: np.ndarray, left: bool) -> tuple[np.ndarray, ...]:
-    """wr, wi, vl, vr of LAPACK dgeev (vl empty unless ``left``), as scipy.linalg.eig calls it."""
-    wr, wi, vl, vr, info = lapack.dgeev(A, compute_vl=int(left),
+#: Largest entries |a_ij| outside this range are scaled by :func:`geev` before dgeev. dgeev
+#: scales a matrix whose largest entry lies outside [sqrt(safmin)/eps, eps/sqrt(safmin)]
+#: (6.7e-139, 1.5e138) to that bound, and the scipy-openblas builds measured here return the
+#: eigenvalues of the scaled matrix without undoing it: diag(-1e150, -1) came back as
+#: (-1.5e138, -1.5e-12), scipy.linalg.eig alike. The margin keeps dgeev's own test well clear.
+GEEV_RANGE = (1e-130, 1e130)
+
+
+def geev_scale(A: np.ndarray, a2: float | None = None) -> float:
+    """A power of 2 that brings the largest |a_ij| of ``A`` into :data:`GEEV_RANGE` (near 1),
+    or 1.0 when it lies there already (``a2``: |A|_F^2 when the caller has it, which settles
+    the usual case without a pass over A: max|a_ij| lies in [|A|_F / n, |A|_F])."""
+    n = max(A.shape[0], 1)
+    lo, hi = GEEV_RANGE
+    if a2 is not None and lo * lo * n * n < a2 < hi * hi:   # (a2 of tiny entries underflows)
+        return 1.0
+    largest = max(float(A.max(initial=0.0)), -float(A.min(initial=0.0)))
+    if largest == 0.0 or lo < largest < hi or not math.isfinite(largest):
+        return 1.0
+    return math.ldexp(1.0, -math.frexp(largest)[1])   # largest * scale in [0.5, 1)
+
+
+def geev(A: np.ndarray, left: bool, a2: float | None = None) -> tuple[np.ndarray, ...]:
+    """wr, wi, vl, vr of LAPACK dgeev (vl empty unless ``left``), as scipy.linalg.eig calls it;
+    a matrix with entries beyond :data:`GEEV_RANGE` is scaled by a power of 2 first and its
+    eigenvalues scaled back, both exact (the eigenvectors do not change). ``a2``: |A|_F^2 if
+    known (:func:`geev_scale`)."""
+    scale = geev_scale(A, a2)
+    wr, wi, vl, vr, info = lapack.dgeev(A if scale == 1.0 else A * scale,
+                                        compute_vl=int(left),
                                         lwork=geev_lwork(A.shape[0], left))
     if info < 0:
         raise ValueError(f"illegal value in argument {-info} of internal eig algorithm (geev)")
     if info > 0:
         raise LinAlgError(f"eig algorithm (geev) did not converge (only eigenvalues with order "
                           f">= {info} have converged)")
+    if scale != 1.0:
+        wr /= scale
+        wi /= scale
     return wr, wi, vl, vr
 
 

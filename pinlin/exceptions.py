@@ -60,9 +60,10 @@ class UnknownNameError(SceneError):
     ) -> None:
         self.name = name
         self.kind = kind
-        self.known = list(known)
+        self.known = list(dict.fromkeys(known))   # a name in two sources, once
         close = difflib.get_close_matches(name, self.known, n=3)
-        hint = f"did you mean {', '.join(repr(c) for c in close)}?" if close else _listing(known)
+        hint = (f"did you mean {', '.join(repr(c) for c in close)}?" if close
+                else _listing(self.known))
         super().__init__(source, field, f"'{name}' is not a {kind} of the robot; {hint}")
 
 
@@ -92,9 +93,10 @@ class UnknownRobotError(PinlinError):
 
     def __init__(self, name: str, known: Sequence[str]) -> None:
         self.name = name
-        self.known = list(known)
+        self.known = list(dict.fromkeys(known))   # a name in two sources, once
         close = difflib.get_close_matches(name, self.known, n=3)
-        hint = f"did you mean {', '.join(repr(c) for c in close)}?" if close else _listing(known)
+        hint = (f"did you mean {', '.join(repr(c) for c in close)}?" if close
+                else _listing(self.known))
         super().__init__(
             f"'{name}' is not a scene file, a URDF, a bundled scene or a robot that loads; {hint}"
         )

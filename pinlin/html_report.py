@@ -57,7 +57,7 @@ def _row_cells(modes: ModalAnalysis, i: int) -> list[str]:
         return ["0 (rigid)", "0", "0", "-"]
     noise = abs(lam.real) <= modes.rounding[i]
     re = "0" if noise else f"{lam.real:+.6g}"
-    ev = f"{re} &plusmn; {abs(lam.imag):.6g}j" if abs(lam.imag) > modes.rigid_tol else re
+    ev = f"{re} &plusmn; {abs(lam.imag):.6g}j" if modes.oscillates(i) else re
     zeta = "0" if noise else f"{modes.zeta[i]:.4g}"
     return [ev, f"{modes.wn[i]:.6g}", f"{modes.wn[i] / (2 * np.pi):.6g}", zeta]
 
@@ -169,7 +169,7 @@ def response_plot(model, modes: ModalAnalysis, index: int, amplitude: float) -> 
     r = r / r[int(np.argmax(np.abs(r[:n])))]
     x0 = amplitude * np.real(r)
     lam = modes.eigenvalues[index]
-    if abs(lam.imag) > modes.rigid_tol:
+    if modes.oscillates(index):
         T = 5 * 2 * np.pi / abs(lam.imag)
     elif abs(lam.real) > modes.rigid_tol:
         T = 5 / abs(lam.real)

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import non_numbers, sum_of_squares
+from .arrays import non_numbers, real_array, sum_of_squares
 from .exceptions import ArgumentError, ModelError, PinlinError, ShapeError
 from .files import as_path, check_file_target, write_bytes_atomic
 from .model_files import MATRICES, NAME_FIELDS, jsonable, model_format, read_model, serialize
@@ -150,6 +150,61 @@ def known_finite(arr: np.ndarray) -> np.ndarray:
     return arr
 
 
+#: How many times n eps cond(M) a second-order residual may reach (:func:`_check_second_order`).
+SECOND_ORDER_MARGIN = 100.0
+
+
+def _check_second_order(model: LinearModel) -> None:
+    """Refuse a continuous model whose second-order matrices describe other dynamics than A
+    and B: x = [dq; v] with A = [[., I], [-M^-1 K, -M^-1 C_damp]] and B = [[0], [M^-1 Bu]]
+    (the upper-left block is zero at rest, a Lie-group term at a moving state: not checked).
+    :func:`pinlin.modal` and the modal energies read M, K and C_damp in place of A, so a model
+    whose matrices disagree would give other eigenvalues than A has.
+
+    The residuals M A21 + K, M A22 + C_damp and M B2 - Bu are zero up to the rounding of
+    the M^-1 the lower rows were formed with: |E| <= n eps |M^-1| for a backward stable
+    inverse gives |M (M^-1 + E) K + ... | <= n eps cond(M) (|M| |A2| + |[K, C_damp]|), the
+    bound used (Frobenius norms, 2-norm condition) with a margin of
+    :data:`SECOND_ORDER_MARGIN`. A model pinlin built is consistent to ~eps cond(M); a model
+    with other M, K, C_damp or states in another order misses it by orders of magnitude.
+
+    Raises:
+        ModelError: naming the model, the block and the residual.
+    """
+    M = model.M
+    if M is None or model.dt or not M.shape[0]:
+        return
+    nv = M.shape[0]
+    A, B = model.A, model.B
+    eps = float(np.finfo(float).eps)
+    try:
+        cond = float(np.linalg.cond(M))
+    except np.linalg.LinAlgError:
+        cond = math.inf
+    # A singular M (a model linearized with allow_ill_conditioned) allows any residual: its
+    # rows were formed with an inverse that has no correct digit, and it must still load.
+    allowed = SECOND_ORDER_MARGIN * nv * eps * cond if math.isfinite(cond) else math.inf
+    norm = np.linalg.norm
+    checks = (
+        ("A[:nv, nv:] (the identity)", norm(A[:nv, nv:] - np.eye(nv)), float(nv) ** 0.5),
+        ("B[:nv] (zero)", norm(B[:nv]), norm(B)),
+        ("M A[nv:, :nv] + K", norm(M @ A[nv:, :nv] + model.K),
+         norm(M) * norm(A[nv:, :nv]) + norm(model.K)),
+        ("M A[nv:, nv:] + C_damp", norm(M @ A[nv:, nv:] + model.C_damp),
+         norm(M) * norm(A[nv:, nv:]) + norm(model.C_damp)),
+        ("M B[nv:] - Bu", norm(M @ B[nv:] - model.Bu), norm(M) * norm(B[nv:]) + norm(model.Bu)),
+    )
+    for what, residual, scale in checks:
+        limit = allowed * scale if what.startswith("M ") else 100.0 * nv * eps * scale
+        if residual > limit:   # a NaN residual cannot occur: the matrices are finite
+            raise ModelError(
+                f"model '{model.name}': its second-order matrices describe other dynamics than "
+                f"A and B (x = [dq; v], A = [[., I], [-M^-1 K, -M^-1 C_damp]], B = [[0], "
+                f"[M^-1 Bu]]): {what} is {residual:.3g}, above the {limit:.3g} rounding "
+                f"allows (cond(M) = {cond:.3g}); give M, C_damp, K and Bu of the same "
+                "dynamics, or none of them")
+
+
 def _check_finite(fields: Mapping[str, Any], model: str) -> None:
     """Refuse NaN or inf in any matrix present.
 
@@ -229,6 +284,10 @@ class LinearModel:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
             raise ArgumentError("name", f"expected a str, got {type(self.name).__name__}")
+        if _CONTROL.search(self.name):
+            raise ArgumentError("name", f"expected a name without control characters (tab, "
+                                        f"newline: it appears in one-line messages), got "
+                                        f"{self.name!r:.60}")
         names = {}
         for k in NAME_FIELDS:
             value = getattr(self, k)
@@ -250,18 +309,13 @@ class LinearModel:
                                "Bu": (nv, m)}.items():
                 object.__setattr__(self, key, _matrix(key, getattr(self, key), shape))
         if self.G is not None:
-            if np.iscomplexobj(self.G):
-                raise ArgumentError("G", "expected a real matrix, got complex entries")
-            try:
-                G = np.asarray(self.G, dtype=float)
-            except (TypeError, ValueError, OverflowError) as exc:
-                raise ArgumentError("G", f"expected a matrix of real numbers: {exc}") from None
+            G = real_array(self.G, "G", "a matrix of real numbers")
             if G.ndim != 2 or 2 * G.shape[1] != n:
                 raise ShapeError(f"G must have n/2 = {n // 2} columns, got shape {G.shape}")
             object.__setattr__(self, "G", _matrix("G", G, G.shape))
         if self.f0 is not None:
-            f0 = _matrix("f0", np.reshape(np.asarray(self.f0, dtype=float), (-1, 1))
-                         if np.size(self.f0) == n else self.f0, (n, 1))
+            f0 = real_array(self.f0, "f0", f"{n} real numbers (the drift)")
+            f0 = _matrix("f0", f0.reshape(-1, 1) if f0.size == n else f0, (n, 1))
             object.__setattr__(self, "f0", f0.reshape(n))
         dt = self.dt
         if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
@@ -270,6 +324,7 @@ class LinearModel:
                                       f"{dt!r}")
         object.__setattr__(self, "dt", float(dt))
         _check_finite(self.__dict__, self.name)
+        _check_second_order(self)
         if self.operating_point is not None and not isinstance(self.operating_point,
                                                                 OperatingPoint):
             raise ArgumentError("operating_point", "expected an OperatingPoint or None, got "

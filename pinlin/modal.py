@@ -77,7 +77,7 @@ def symmetric_applicable(model: LinearModel) -> bool:
     consistent with them (no E)."""
     if model.M is None or model.E is not None:
         return False
-    if model.info.get("velocity_terms", True) and np.count_nonzero(model.C_damp):
+    if np.count_nonzero(model.C_damp):   # (not model.info: a hand-built model's says anything)
         return False
     for mat in (model.K, model.M):     # dsygvd reads one triangle of each
         # max |mat - mat^T| in one reduction: the difference is antisymmetric, exactly (a - b
@@ -179,7 +179,7 @@ class ModalAnalysis:
         names = self.model.state_names
         rows = self._rows
         picked = names[rows] if isinstance(rows, slice) else [names[k] for k in rows]
-        return tuple(s[2:] if s.startswith("q:") else s for s in picked)
+        return tuple(s.removeprefix("q:") for s in picked)
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -188,8 +188,15 @@ class ModalAnalysis:
 
     @property
     def unstable(self) -> np.ndarray:
-        """Mask of eigenvalues with Re(lam) > rigid_tol (exponentially growing modes)."""
-        return self.eigenvalues.real > self.rigid_tol
+        """Mask of exponentially growing modes: Re(lam) > 0 by more than rounding (above
+        rigid_tol, or above 10 n times :attr:`rounding`: a slow unstable mode beside much
+        faster ones; :meth:`kind` says "unstable" for the same eigenvalues)."""
+        re = self.eigenvalues.real
+        out = re > self.rigid_tol
+        maybe = (re > 0.0) & ~out
+        if maybe.any():   # the rounding levels (condition numbers) only where they decide
+            out |= maybe & (re > 10.0 * re.size * self.rounding)
+        return out
 
     @property
     def is_stable(self) -> bool:
@@ -304,6 +311,17 @@ class ModalAnalysis:
         2m eigenvalues whose position vectors lie most in the range of Phi_q^T (m constraint
         rows), measured by |G v_q| / (|G| |v_q|); physical modes have |G v_q| = O(1/alpha)."""
         return modal_table.constraint(self)
+
+    def oscillates(self, index: int) -> bool:
+        """Whether eigenvalue ``index`` has an imaginary part: above ``rigid_tol`` or above its
+        own rounding level (:attr:`rounding`; a slow oscillation beside much faster modes,
+        whose rigid_tol is larger than its imaginary part). An eigenvalue that does not is
+        real: its row shows no +-j and its kind is "real", "unstable" or "rigid".
+
+        Raises:
+            ArgumentError: ``index`` is not an eigenvalue index 0 <= index < n.
+        """
+        return modal_table.oscillates(self, self._index(index))
 
     def kind(self, index: int) -> str:
         """What eigenvalue ``index`` is: "rigid", "constraint", "oscillatory", "undamped",
@@ -481,7 +499,7 @@ def _general(model: LinearModel, rigid_tol: float | None, a2: float | None = Non
     A = model.A
     if A.shape[0] == 0:
         return _empty(model, rigid_tol)
-    wr, wi, _, vr = es.geev(A, left=False)
+    wr, wi, _, vr = es.geev(A, left=False, a2=a2)
     lam = np.empty(wr.size, dtype=complex)
     lam.real, lam.imag = wr, wi
     magnitudes = np.abs(lam)                # in dgeev's order

@@ -135,7 +135,7 @@ def modal_energy(modes: ModalAnalysis, scene: Scene | None = None) -> ModalEnerg
         potential = (pot_parts / pot_total).T
     no_potential = np.abs(pot_total) <= modes.rigid_tol ** 2 * kin_total
     potential[no_potential | modes.rigid[index]] = np.nan
-    names = tuple(s[2:] for s in model.state_names[:nv])
+    names = tuple(s.removeprefix("q:") for s in model.state_names[:nv])
     joints = tuple(dict.fromkeys(s.split("[")[0] for s in names))
     groups = np.array([[s.split("[")[0] == j for s in names] for j in joints], dtype=float)
     body, body_names = (None, ()) if scene is None else _bodies(model, scene, phi)
@@ -195,7 +195,7 @@ POTENTIAL_STEP = 1e-3
 def _shape_matrix(model: LinearModel, scene: Scene, n: int) -> np.ndarray:
     """R mapping the model's position shape to all of the robot's coordinates."""
     system = scene.system
-    coords = [s[2:] for s in model.state_names[:n]]
+    coords = [s.removeprefix("q:") for s in model.state_names[:n]]
     if "R" in model.info:
         R = np.asarray(model.info["R"], dtype=float)
     elif coords == list(system.coordinate_names):

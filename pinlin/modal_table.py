@@ -7,8 +7,12 @@ functions.
 The printed table shows a real part (and so zeta) as 0 where it is below the eigenvalue's
 rounding level (:attr:`ModalAnalysis.rounding`, kappa eps |A|_F: how far rounding A's entries
 moves it to first order), so an undamped mode prints zeta 0, not -5e-18; the arrays
-``eigenvalues`` and ``zeta`` keep the computed values, and which modes are stable does not
-change (that uses rigid_tol, many orders above).
+``eigenvalues`` and ``zeta`` keep the computed values. Which modes oscillate, decay or grow
+(:func:`kind`) is decided by a margin above rounding: an imaginary part counts above its
+rounding level, a real part above 10 n times it (n eigenvalues: the eigensolver's backward
+error is up to ~n eps |A|), or above rigid_tol either way. rigid_tol alone would be too
+coarse where the spectrum is wide: it follows the fastest mode, so beside a 1e7 1/s mode
+(rigid_tol 10) it would call -100 +- 5j real and +5 +- 100j undamped.
 """
 
 from __future__ import annotations
@@ -19,6 +23,27 @@ import numpy as np
 
 if TYPE_CHECKING:
     from .modal import ModalAnalysis
+
+
+def oscillates(analysis: ModalAnalysis, index: int) -> bool:
+    """:meth:`ModalAnalysis.oscillates` of ``analysis`` (documented there, in
+    :mod:`pinlin.modal`)."""
+    im = abs(analysis.eigenvalues[index].imag)
+    if im > analysis.rigid_tol:
+        return True
+    # rigid_tol follows the fastest mode; a slow mode's imaginary part may lie below it and
+    # still far above its own rounding level (-100 +- 5j beside -1e7: rigid_tol is 10).
+    return im > 0.0 and im > analysis.rounding[index]
+
+
+def _resolved(analysis: ModalAnalysis, index: int, value: float) -> bool:
+    """Whether a real part ``value`` > 0 [1/s] is more than rounding: above rigid_tol, or
+    above 10 n times the eigenvalue's rounding level (the first-order move of kappa eps |A|_F,
+    times the eigensolver's backward error of up to ~n eps |A|, times 10). Below both, the
+    mode counts as undamped (Re within noise of 0)."""
+    if value > analysis.rigid_tol:
+        return True
+    return value > 10.0 * len(analysis.eigenvalues) * analysis.rounding[index]
 
 
 def modes(analysis: ModalAnalysis) -> list[int]:
@@ -34,7 +59,7 @@ def modes(analysis: ModalAnalysis) -> list[int]:
         if i + 1 < len(lam) and (
             # A rigid DoF of a mechanical model is a 2x2 Jordan block: two zero eigenvalues.
             (analysis.rigid[i] and analysis.rigid[i + 1] and analysis.model.has_second_order)
-            or (abs(lam[i].imag) > analysis.rigid_tol
+            or (oscillates(analysis, i)
                 and abs(lam[i + 1] - lam[i].conjugate()) <= 1e-9 * max(1.0, abs(lam[i])))
         ):
             skip.add(i + 1)
@@ -71,10 +96,11 @@ def kind(analysis: ModalAnalysis, index: int) -> str:
         return "constraint"
     if analysis.rigid[index]:
         return "rigid"
-    if lam.real > analysis.rigid_tol:
-        return "unstable" if abs(lam.imag) <= analysis.rigid_tol else "unstable osc."
-    if abs(lam.imag) > analysis.rigid_tol:
-        return "oscillatory" if lam.real < -analysis.rigid_tol else "undamped"
+    if lam.real > 0.0 and _resolved(analysis, index, lam.real):
+        return "unstable osc." if oscillates(analysis, index) else "unstable"
+    if oscillates(analysis, index):
+        return "oscillatory" if lam.real < 0.0 and _resolved(analysis, index, -lam.real) \
+            else "undamped"
     return "real"
 
 
@@ -106,7 +132,7 @@ def table(analysis: ModalAnalysis) -> str:
             # not where rounding may move the whole eigenvalue (a defective one): as computed.
             noise = abs(lam.real) <= analysis.rounding[i] < abs(lam)
             re = "0" if noise else f"{lam.real:+.6g}"
-            ev = f"{re} +- {im:.6g}j" if im > analysis.rigid_tol else re
+            ev = f"{re} +- {im:.6g}j" if oscillates(analysis, i) else re
             wn, f = f"{analysis.wn[i]:.6g}", f"{analysis.wn[i] / (2 * np.pi):.6g}"
             zeta = "0" if noise else f"{analysis.zeta[i]:.4g}"
         dom = ", ".join(analysis.dominant(i))

@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg as sla
 
+from .arrays import real_array
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .linear_model import LinearModel
 from .signals import Signal
@@ -239,14 +240,19 @@ def _result(model: LinearModel, t: np.ndarray, x: np.ndarray, y: np.ndarray, U: 
 
 # --------------------------------------------------------------------------------------------
 def _times(t: object) -> np.ndarray:
-    try:
-        arr = np.array(t, dtype=float).reshape(-1) if np.ndim(t) <= 1 else None
-    except (TypeError, ValueError):
-        arr = None
-    if arr is None or arr.size == 0:
+    arr = real_array(t, "t", "a 1-D sequence of sample times [s]")
+    if arr.ndim != 1 or arr.size == 0:
         raise ArgumentError("t", "expected a 1-D sequence of sample times [s] (at least one)")
-    if not np.all(np.isfinite(arr)) or np.any(np.diff(arr) <= 0):
+    if not np.all(np.isfinite(arr)):
         raise ArgumentError("t", "expected finite, strictly increasing sample times [s]")
+    with np.errstate(over="ignore"):
+        steps = np.diff(arr)
+    if np.any(steps <= 0):
+        raise ArgumentError("t", "expected finite, strictly increasing sample times [s]")
+    if not np.all(np.isfinite(steps)):
+        raise ArgumentError("t", f"the span from {arr[0]:g} to {arr[-1]:g} s between two "
+                                 "samples exceeds float64's range; give times within "
+                                 "+-8.9e307 s of each other")
     return arr
 
 
@@ -254,11 +260,8 @@ def _initial(x0: object, model: LinearModel) -> np.ndarray:
     n = model.n_states
     if x0 is None:
         return np.zeros(n)
-    try:
-        arr = np.asarray(x0, dtype=float)
-    except (TypeError, ValueError):
-        raise ArgumentError("x0", f"expected {n} numbers (the state {model.state_names[:3]}"
-                                  "...)") from None
+    arr = real_array(x0, "x0", f"{n} real numbers (the state {', '.join(model.state_names[:3])}"
+                               f"{', ...' if n > 3 else ''})")
     if arr.shape != (n,):
         raise ShapeError(f"x0 must have shape ({n},) (states {', '.join(model.state_names)}),"
                          f" got {arr.shape}")
@@ -277,11 +280,7 @@ def _inputs(u: object, model: LinearModel, t: np.ndarray) -> tuple[np.ndarray, S
     if callable(u):
         rows = [_call(u, float(tk), m) for tk in t]
         return np.array(rows).reshape(N, m), None
-    try:
-        arr = np.asarray(u, dtype=float)
-    except (TypeError, ValueError):
-        raise ArgumentError("u", f"expected None, a Signal, samples ({N}, {m}) or a callable "
-                                 f"u(t), got {type(u).__name__}") from None
+    arr = real_array(u, "u", f"None, a Signal, real samples ({N}, {m}) or a callable u(t)")
     if arr.ndim == 1 and m == 1 and arr.shape[0] == N:
         arr = arr[:, None]
     if arr.shape != (N, m):
@@ -294,7 +293,8 @@ def _inputs(u: object, model: LinearModel, t: np.ndarray) -> tuple[np.ndarray, S
 
 
 def _call(u: Callable, tk: float, m: int) -> np.ndarray:
-    value = np.asarray(u(tk), dtype=float).reshape(-1)
+    value = real_array(u(tk), "u", f"u(t) to return {m} real numbers (at t = {tk:g} s)")
+    value = value.reshape(-1)
     if value.shape != (m,) or not np.all(np.isfinite(value)):
         raise ArgumentError("u", f"u(t) must return {m} finite values; at t = {tk:g} s it "
                                  f"returned {value.shape[0]} value(s) {value[:4]}")

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import real_array
 from .exceptions import ArgumentError
 
 Amplitude = Mapping[str, float] | Sequence[float] | np.ndarray | float
@@ -110,11 +111,16 @@ def _amplitude(value: Any, names: Sequence[str], kind: str) -> np.ndarray:
     if isinstance(value, Mapping):
         out = np.zeros(m)
         index = {n: i for i, n in enumerate(names)}
+        given: dict[int, str] = {}
         for key, val in value.items():
             i = index.get(key, index.get(f"u:{key}")) if isinstance(key, str) else None
             if i is None:
                 raise ArgumentError(what, f"no input named {key!r:.60}; the model's inputs are "
                                           f"{', '.join(names) or '(none)'}")
+            if i in given:
+                raise ArgumentError(what, f"input '{names[i]}' given twice, as {given[i]!r} "
+                                          f"and {key!r}")
+            given[i] = key
             out[i] = _number(val, f"{what} of {key}")
         return out
     if isinstance(value, numbers.Real) and not isinstance(value, bool):
@@ -122,11 +128,8 @@ def _amplitude(value: Any, names: Sequence[str], kind: str) -> np.ndarray:
             raise ArgumentError(what, f"a single number needs a single-input model; this one "
                                       f"has {m} inputs: give {{name: value}} or {m} values")
         return np.array([_number(value, what)])
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ArgumentError(what, f"expected a mapping {{input name: value}}, {m} values or a "
-                                  f"number, got {type(value).__name__}") from None
+    arr = real_array(value, what, f"a mapping {{input name: value}}, {m} real values or a "
+                                  "number")
     if arr.shape != (m,) or not np.all(np.isfinite(arr)):
         raise ArgumentError(what, f"expected {m} finite values (one per input: "
                                   f"{', '.join(names)}), got shape {arr.shape}")

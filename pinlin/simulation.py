@@ -19,6 +19,7 @@ resolve them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,7 +28,7 @@ import numpy as np
 import pinocchio as pin
 import scipy.integrate
 
-from .arrays import non_numbers, read_only
+from .arrays import read_only, real_array
 from .exceptions import ArgumentError, ModelError
 from .formulations.constrained import constrained_effects
 from .linearization import _system, operating_point
@@ -114,11 +115,8 @@ class _Inputs:
             self.function = u
             self.at(float(t[0]))  # checks the shape once
             return
-        try:
-            samples = np.array(u, dtype=float)
-        except (TypeError, ValueError):
-            raise ArgumentError("u", f"expected a callable u(t) -> ({nu},) or an array of "
-                                     f"shape ({t.size}, {nu}), got {type(u).__name__}") from None
+        samples = real_array(u, "u", f"a callable u(t) -> ({nu},) or an array of real "
+                                     f"numbers of shape ({t.size}, {nu})")
         if samples.ndim == 1 and nu == 1:
             samples = samples[:, None]
         if samples.shape != (t.size, nu):
@@ -137,7 +135,8 @@ class _Inputs:
             return self.u0 + self.samples[k]
         if self.function is None:
             return self.u0
-        du = np.asarray(self.function(t), dtype=float).reshape(-1)
+        du = real_array(self.function(t), "u", f"u(t) to return {self.u0.size} real "
+                                               f"numbers (at t = {t:g} s)").reshape(-1)
         if du.size != self.u0.size or not np.all(np.isfinite(du)):
             raise ArgumentError("u", f"u(t) must return {self.u0.size} finite numbers, got "
                                      f"{du!r:.80} at t = {t:g} s")
@@ -284,11 +283,7 @@ def _energy(system: System, op: OperatingPoint, Q: np.ndarray, V: np.ndarray,
 
 
 def _time_grid(t: object) -> np.ndarray:
-    try:
-        grid = np.array(t, dtype=float)
-    except (TypeError, ValueError):
-        raise ArgumentError("t", f"expected an increasing sequence of times [s], got "
-                                 f"{type(t).__name__}") from None
+    grid = real_array(t, "t", "an increasing sequence of times [s]")
     if grid.ndim != 1 or grid.size < 1 or not np.all(np.isfinite(grid)) \
             or np.any(np.diff(grid) <= 0.0):
         raise ArgumentError("t", "expected a 1-D, finite, strictly increasing sequence of "
@@ -310,10 +305,20 @@ RTOL_MIN = 100 * np.finfo(float).eps
 
 
 def _tolerance(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
+    if isinstance(value, bool | np.bool_) or \
+            not isinstance(value, int | float | np.integer | np.floating):
         raise ArgumentError(name, f"expected a number, got {type(value).__name__}")
-    if not (np.isfinite(value) and value > 0.0):
+    try:
+        value = float(value)
+    except OverflowError:
+        value = math.inf
+    if not (math.isfinite(value) and value > 0.0):
         raise ArgumentError(name, f"expected a finite number > 0, got {value!r}")
+    if name == "atol" and value >= 1.0:
+        raise ArgumentError(name, f"{value:g} allows absolute errors of a radian or a metre (a "
+                                  "radian or a metre per second) per step, as large as the "
+                                  "motion itself; an absolute tolerance is below 1 (the "
+                                  "default is 1e-12)")
     if name == "rtol" and value < RTOL_MIN:   # scipy would raise it with a warning
         raise ArgumentError(name, f"{value:g} is below {RTOL_MIN:.3g} (100 x machine "
                                   f"epsilon), the smallest relative tolerance the solvers "
@@ -367,14 +372,11 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     dyn: OpenChain | Mechanism = Mechanism(system, op) if system.constraints else \
         OpenChain(system, op)
     nv = system.nv
-    bad = None if dx0 is None else non_numbers(dx0)
-    if bad:
-        raise ArgumentError("dx0", f"expected {2 * nv} real numbers, got {bad}")
-    try:
-        deviation = np.zeros(2 * nv) if dx0 is None else np.array(dx0, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ArgumentError("dx0", f"expected {2 * nv} numbers, got {type(dx0).__name__}") \
-            from None
+    deviation = np.zeros(2 * nv) if dx0 is None else \
+        real_array(dx0, "dx0", f"{2 * nv} real numbers")
+    if deviation.ndim != 1:
+        raise ArgumentError("dx0", f"expected a vector of {2 * nv} numbers, got shape "
+                                   f"{deviation.shape}")
     if not np.all(np.isfinite(deviation)):
         raise ArgumentError("dx0", "contains NaN or inf")
     if deviation.size % 2 == 0:  # 2 nv or 2 nz (a wrong size is the initial state's to refuse)

@@ -378,7 +378,7 @@ def mode_label(modes: ModalAnalysis, index: int) -> str:
     if modes.rigid[index]:
         return f"mode {number}: rigid"
     lam = modes.eigenvalues[index]
-    if abs(lam.imag) > modes.rigid_tol:
+    if modes.oscillates(index):
         zeta = 0.0 if abs(lam.real) <= modes.rounding[index] else float(modes.zeta[index])
         return f"mode {number}: f = {modes.wn[index] / (2 * np.pi):.4g} Hz, zeta = {zeta:.3g}"
     return f"mode {number}: lambda = {lam.real:+.4g} 1/s ({kind})"

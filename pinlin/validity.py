@@ -12,10 +12,11 @@ as numbers). An undamped mode starts from rest in its shape; a damped or real on
 velocity Re(lambda r_q). A direction (a coordinate name or a state vector) is scaled the same
 way; one with no position part by its largest velocity (a then in [rad/s or m/s]).
 
-**Horizon T** (lambda = sigma + i w of the mode, ``rigid_tol`` that of :func:`pinlin.modal`):
+**Horizon T** (lambda = sigma + i w of the mode):
 
-- oscillatory (|w| > rigid_tol): ``periods`` periods, T = periods 2 pi / |w|, and at most
-  ``time_constants / sigma`` when unstable (sigma > 0) or :data:`DECAY` / |sigma| when damped;
+- oscillatory (w resolved: :meth:`pinlin.ModalAnalysis.oscillates`): ``periods`` periods,
+  T = periods 2 pi / |w|, and at most ``time_constants / sigma`` when unstable (sigma > 0) or
+  :data:`DECAY` / |sigma| when damped (as :meth:`~pinlin.ModalAnalysis.kind` says);
 - real: T = time_constants / |sigma| (at most :data:`SLOW_LIMIT` periods of the fastest mode).
 
 Why: an unstable solution e^{sigma t} a d leaves the neighbourhood the amplitude names (an
@@ -251,15 +252,18 @@ def _direction(model: LinearModel, direction: object) -> tuple[np.ndarray, str, 
     return d / np.abs(d[n:]).max(), label, "rad/s or m/s"
 
 
-def _mode_horizon(lam: complex, ma: ModalAnalysis, periods: float, time_constants: float
+def _mode_horizon(index: int, ma: ModalAnalysis, periods: float, time_constants: float
                   ) -> tuple[float, float, str]:
-    """(T [s], its period [s] or 0, rule) of one mode (module docstring)."""
+    """(T [s], its period [s] or 0, rule) of mode ``index`` (module docstring; oscillatory,
+    growing and decaying as :meth:`ModalAnalysis.kind` says)."""
+    lam = ma.eigenvalues[index]
     sigma, w = lam.real, abs(lam.imag)
-    if w > ma.rigid_tol:
+    if ma.oscillates(index):
         T, rule = periods * 2 * np.pi / w, f"{periods:g} periods"
-        if sigma > ma.rigid_tol and time_constants / sigma < T:
+        kind = ma.kind(index)
+        if kind == "unstable osc." and time_constants / sigma < T:
             T, rule = time_constants / sigma, f"growth e^{time_constants:g} (unstable)"
-        elif sigma < -ma.rigid_tol and DECAY / -sigma < T:
+        elif kind == "oscillatory" and DECAY / -sigma < T:
             T, rule = DECAY / -sigma, f"decay e^-{DECAY:g}"
         return T, 2 * np.pi / w, rule
     verb = "growth e^" if sigma > 0 else "decay e^-"
@@ -454,7 +458,7 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
     options = {"q0": None if q is None else model.operating_point.q,
                "v0": None if v is None else model.operating_point.v, "rtol": rtol, "atol": atol}
     n = model.n_states // 2
-    horizons = {i: _mode_horizon(ma.eigenvalues[i], ma, periods, time_constants)
+    horizons = {i: _mode_horizon(i, ma, periods, time_constants)
                 for i in ma.modes() if ma.kind(i) not in _EXCLUDED_KINDS}
     jobs = []
     for i in chosen:
@@ -480,7 +484,7 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
                     equilibrium=drift == 0.0, drift=drift,
                     notes=tuple(notes(cases, drift, tolerance, FIRST_ORDER)),
                     seconds=time.perf_counter() - start, simulations=count,
-                    coordinate_names=tuple(s[2:] for s in model.state_names[:n]))
+                    coordinate_names=tuple(s.removeprefix("q:") for s in model.state_names[:n]))
 
 
 def _direction_horizon(ma: ModalAnalysis, horizons: dict[int, tuple[float, float, str]],
@@ -492,7 +496,8 @@ def _direction_horizon(ma: ModalAnalysis, horizons: dict[int, tuple[float, float
             raise ArgumentError("horizon", f"model '{ma.model.name}' has no non-rigid mode "
                                            "to set the direction's horizon: give horizon= [s]")
         return horizon, 0.0, "given"
-    unstable = [h[0] for j, h in horizons.items() if ma.eigenvalues[j].real > ma.rigid_tol]
+    growing = ma.unstable
+    unstable = [h[0] for j, h in horizons.items() if growing[j]]
     period = min((h[1] for h in horizons.values() if h[1] > 0), default=0.0)
     if unstable:
         return min(unstable), period, "the shortest unstable mode horizon"

@@ -256,3 +256,13 @@ def test_trajectory_says_when_it_moved_the_given_states(capfd, tmp_path):
     code, out, _ = run(capfd, "trajectory", "pendulum", str(pend), "--out",
                        str(tmp_path / "pm.npz"), "--no-progress")
     assert code == 0 and "states moved" not in out
+
+
+def test_nonlinear_response_names_the_option_and_unknown_names_are_listed_once(capfd):
+    """The nonlinear run's refusal of the initial state named the API's 'dx0'; a name that is
+    both a bundled scene and a robot was suggested twice."""
+    code, out, err = run(capfd, "response", "pendulum", "--t-end", "1", "--x0", "q:hinge=1e10",
+                         "--nonlinear")
+    assert code == 2 and "argument '--x0'" in err and "dx0" not in err
+    code, out, err = run(capfd, "simulate", "nopendulum", "--t-end", "1")
+    assert code == 2 and err.count("'double_pendulum'") == 1, err

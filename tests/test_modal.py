@@ -328,3 +328,68 @@ def test_hand_built_mass_matrix_that_the_pencil_cannot_take(M):
                                np.sort_complex(np.linalg.eigvals(model.A)), atol=1e-14)
     with pytest.raises(pinlin.PinlinError, match="symmetric"):
         pinlin.modal(model, method="symmetric")
+
+
+def _first_order(A) -> pinlin.LinearModel:
+    A = np.array(A, dtype=float)
+    n = len(A)
+    return pinlin.LinearModel(A, np.zeros((n, 1)), np.eye(n), np.zeros((n, 1)),
+                              tuple(f"x{i}" for i in range(n)), ("u",),
+                              tuple(f"y{i}" for i in range(n)), name="by_hand")
+
+
+@pytest.mark.parametrize("A", [
+    [[-1e150, 0.5], [0.0, -1.0]],        # beyond dgeev's scaling bound 1.5e138
+    [[-1e139, 0.0], [0.0, -1.0]],
+    [[0.0, 1e-200], [-1e-200, 0.0]],     # below 6.7e-139: dgeev scaled it up, never back
+    [[0.0, 1.0], [-1e140, 0.0]],         # a second-order model with K = 1e140 (general path)
+])
+def test_eigenvalues_of_huge_and_tiny_matrices(A):
+    """scipy-openblas's dgeev scales a matrix whose largest entry lies outside ~[6.7e-139,
+    1.5e138] and returned the eigenvalues of the scaled matrix (diag(-1e150, -1) gave -1.5e138
+    and -1.5e-12); pinlin scales by a power of 2 itself. Reference: the eigenvalues of the
+    triangular or 2x2 blocks in closed form (numpy's eigvals agrees)."""
+    A = np.array(A)
+    if A[1, 0] == 0.0:
+        expected = np.diag(A).astype(complex)
+    else:   # [[0, b], [-c, 0]]: +- i sqrt(b c)
+        w = np.sqrt(A[0, 1]) * np.sqrt(-A[1, 0])
+        expected = np.array([1j * w, -1j * w])
+    with warnings.catch_warnings():   # rightly: rounding 1e150 moves -1 by up to 1e134
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        modes = pinlin.modal(_first_order(A), rigid_tol=0.0)
+    np.testing.assert_allclose(np.sort_complex(modes.eigenvalues), np.sort_complex(expected),
+                               rtol=1e-14, atol=0)
+    np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(A)), np.sort_complex(expected),
+                               rtol=1e-14)
+
+
+def test_second_order_matrices_must_agree_with_the_state_matrix():
+    """A hand-built model whose M, K describe other dynamics than its A was accepted and modal
+    read the pencil (K, M): +-1j where A has +-2j. Refused now, naming the block; a model
+    whose matrices agree to rounding is accepted (the symmetric path gives A's eigenvalues)."""
+    eye, zero = np.eye(1), np.zeros((1, 1))
+    args = (np.zeros((2, 1)), np.eye(2), np.zeros((2, 1)), ("q:a", "v:a"), ("u",), ("y1", "y2"))
+    with pytest.raises(pinlin.ModelError, match=r"M A\[nv:, :nv\] \+ K is 3"):
+        pinlin.LinearModel([[0, 1], [-4, 0]], *args, M=eye, K=eye, C_damp=zero, Bu=zero)
+    with pytest.raises(pinlin.ModelError, match=r"M A\[nv:, nv:\] \+ C_damp is 1"):
+        pinlin.LinearModel([[0, 1], [-1, 0]], *args, M=eye, K=eye, C_damp=eye, Bu=zero)
+    with pytest.raises(pinlin.ModelError, match=r"A\[:nv, nv:\] \(the identity\)"):
+        pinlin.LinearModel([[1, 0], [0, -1]], *args, M=eye, K=eye, C_damp=zero, Bu=zero)
+    good = pinlin.LinearModel([[0, 1], [-4, 0]], *args, M=eye, K=4 * eye, C_damp=zero, Bu=zero)
+    np.testing.assert_allclose(np.sort_complex(pinlin.modal(good).eigenvalues), [-2j, 2j])
+
+
+def test_info_does_not_turn_damping_off():
+    """``info = {"velocity_terms": False}`` made modal skip its look at C_damp and solve the
+    undamped pencil: +-1j for a damped oscillator whose A has -0.5 +- 0.866j."""
+    A = [[0.0, 1.0], [-1.0, -1.0]]
+    model = pinlin.LinearModel(A, np.zeros((2, 1)), np.eye(2), np.zeros((2, 1)),
+                               ("q:a", "v:a"), ("u",), ("y1", "y2"), M=np.eye(1), K=np.eye(1),
+                               C_damp=np.eye(1), Bu=np.zeros((1, 1)),
+                               info={"velocity_terms": False})
+    modes = pinlin.modal(model)
+    assert modes.method == "general"
+    np.testing.assert_allclose(np.sort_complex(modes.eigenvalues),
+                               np.sort_complex([-0.5 - 0.75 ** 0.5 * 1j, -0.5 + 0.75 ** 0.5 * 1j]),
+                               rtol=1e-14)

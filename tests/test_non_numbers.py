@@ -109,3 +109,81 @@ def test_modal_indices_and_coordinates():
             method(np.array(["1", "0"]))
     r = modes.to_modal(np.array([1.0, 0.0]))
     assert np.allclose(modes.from_modal(r), [1.0, 0.0], atol=1e-14)
+
+
+# Time responses and simulations: numpy's float conversion dropped imaginary parts with a
+# ComplexWarning (the input then acted as zero), read text and booleans as numbers, and raised
+# its own TypeError or ValueError for what a callable u(t) returned.
+_T = np.linspace(0.0, 1.0, 11)
+
+
+@pytest.mark.parametrize("argument, call, words", [
+    ("step amplitude", lambda m: pinlin.response(m, _T, None, pinlin.step(np.array([1j]))),
+     "complex"),
+    ("step amplitude", lambda m: pinlin.response(m, _T, None, pinlin.step([True])),
+     "booleans"),
+    ("x0", lambda m: pinlin.response(m, _T, np.array([1 + 5j, 0])), "complex"),
+    ("x0", lambda m: pinlin.response(m, _T, ["1", "0"]), "text"),
+    ("x0", lambda m: pinlin.response(m, _T, [True, False]), "booleans"),
+    ("u", lambda m: pinlin.response(m, _T, None, np.ones(11) * (1 + 1j)), "complex"),
+    ("u", lambda m: pinlin.response(m, _T, None, np.ones(11, dtype=bool)), "booleans"),
+    ("t", lambda m: pinlin.response(m, np.array([0, 1 + 1j]), [1, 0]), "complex"),
+    ("t", lambda m: pinlin.response(m, ["0", "1"], [1, 0]), "text"),
+    ("u", lambda m: pinlin.response(m, _T, None, lambda s: "abc"), "text"),
+    ("u", lambda m: pinlin.response(m, _T, None, lambda s: {"a": 1}), "dict"),
+    ("u", lambda m: pinlin.response(m, _T, None, lambda s: 1j), "complex"),
+    ("f0", lambda m: _model(f0=[1, 1j]), "complex"),
+    ("f0", lambda m: _model(f0=["1", "2"]), "text"),
+    ("G", lambda m: _model(G=[["1"]]), "text"),
+    ("G", lambda m: _model(G=[[True]]), "booleans"),
+])
+def test_responses_and_model_vectors(argument, call, words):
+    with pytest.raises(pinlin.ArgumentError, match=f"argument '{argument}': expected .*got "
+                                                   f"{words}"):
+        call(_model())
+
+
+@pytest.mark.parametrize("argument, kwargs, words", [
+    ("u", {"u": np.ones(11) * 1j}, "complex"),
+    ("u", {"u": np.ones(11, dtype=bool)}, "booleans"),
+    ("u", {"u": lambda s: "a"}, "text"),
+    ("dx0", {"dx0": [[0.1, 0.0]]}, r"a vector of 2 numbers, got shape \(1, 2\)"),
+    ("t", {"t": np.array([0.0, 1j])}, "complex"),
+])
+def test_simulation_inputs(argument, kwargs, words):
+    args = {"t": _T, **kwargs}
+    t = args.pop("t")
+    with pytest.raises(pinlin.ArgumentError, match=f"argument '{argument}': expected .*"
+                                                   f"{words}"):
+        pinlin.simulate("pendulum", t, **args)
+
+
+def test_one_input_named_twice_is_refused():
+    """``step({"a": 1, "u:a": 2})`` applied 2 and dropped 1 without a word."""
+    with pytest.raises(pinlin.ArgumentError, match="input 'u:a' given twice, as 'a' and 'u:a'"):
+        pinlin.response(_model(), _T, None, pinlin.step({"a": 1, "u:a": 2}))
+
+
+def test_tolerances_and_sample_times_at_the_edges():
+    # An absolute tolerance of 1e300 let the integrator take any step (0.145 J energy drift).
+    with pytest.raises(pinlin.ArgumentError, match="argument 'atol': 1e\\+300 allows"):
+        pinlin.simulate("pendulum", _T, atol=1e300)
+    run = pinlin.simulate("pendulum", _T, atol=np.int64(1) * 1e-9, rtol=np.float32(1e-6))
+    assert run.z.shape == (11, 2)
+    with pytest.raises(pinlin.ArgumentError, match="argument 'atol': expected a finite number"):
+        pinlin.simulate("pendulum", _T, atol=10 ** 400)
+    # dt beyond float64 raised OverflowError from math.isfinite.
+    with pytest.raises(pinlin.ArgumentError, match="argument 'dt': expected a sample time"):
+        _model().discretize(10 ** 400)
+    # Two samples 2e308 s apart: their step overflows, which is said as such.
+    with pytest.raises(pinlin.ArgumentError, match="argument 't': the span .* exceeds "
+                                                   "float64's range"):
+        pinlin.response(_model(), [-1e308, 1e308], [1, 0])
+
+
+def test_model_names_without_control_characters_and_no_discrete_input_derivative():
+    with pytest.raises(pinlin.ArgumentError, match="argument 'name': expected a name without "
+                                                   "control characters"):
+        _model(name="two\tlines\n")
+    with pytest.raises(pinlin.ModelError, match="output term F u'"):
+        _model(F=np.ones((2, 1))).discretize(0.01)

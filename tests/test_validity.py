@@ -10,10 +10,10 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import math
-import types
 
 import numpy as np
 import pytest
+import scipy.linalg as sla
 from conftest import REPO, URDF_DIR
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
@@ -166,11 +166,41 @@ def test_damped_mode_starts_from_the_real_part_of_its_shape():
                                                   "real mode)")),
 ])
 def test_horizon_rules(lam, expected):
-    """The rules of the module docstring, for periods = 5 and time_constants = 2 [s]; the
-    fastest mode at 2 rad/s."""
-    ma = types.SimpleNamespace(rigid_tol=1e-6, wn=np.array([abs(lam), 2.0]))
-    T, period, rule = VM._mode_horizon(complex(lam), ma, 5.0, 2.0)
+    """The rules of the module docstring, for periods = 5 and time_constants = 2 [s]: the mode
+    lam of a model whose fastest mode is +-2j rad/s (rigid_tol 1e-6)."""
+    block = [[lam.real, lam.imag], [-lam.imag, lam.real]] if lam.imag else [[lam.real]]
+    A = sla.block_diag(block, [[0.0, 2.0], [-2.0, 0.0]])
+    n = A.shape[0]
+    model = pinlin.LinearModel(A, np.zeros((n, 1)), np.eye(n), np.zeros((n, 1)),
+                               [f"x{k}" for k in range(n)], ["u"], [f"y{k}" for k in range(n)])
+    ma = pinlin.modal(model, rigid_tol=1e-6)
+    index = int(np.argmin(np.abs(ma.eigenvalues - lam)))
+    T, period, rule = VM._mode_horizon(index, ma, 5.0, 2.0)
     assert (T, period) == pytest.approx(expected[:2], rel=1e-12) and rule == expected[2]
+
+
+def test_slow_modes_beside_a_fast_one_keep_their_kind():
+    """A mode far slower than the fastest (rigid_tol 10 beside -1e7) keeps its imaginary
+    part and its sign of growth: -100 +- 5j oscillates (5 periods, capped by the decay),
+    +5 +- 100j grows (not 'undamped'), and the model is unstable."""
+    for block, kind in (([[-100.0, 5.0], [-5.0, -100.0]], "oscillatory"),
+                        ([[5.0, 100.0], [-100.0, 5.0]], "unstable osc.")):
+        A = sla.block_diag(block, [[-1e7]])
+        model = pinlin.LinearModel(A, np.zeros((3, 1)), np.eye(3), np.zeros((3, 1)),
+                                   ["x0", "x1", "x2"], ["u"], ["y0", "y1", "y2"])
+        ma = pinlin.modal(model)
+        assert ma.rigid_tol == pytest.approx(10.0)
+        assert [ma.kind(i) for i in range(3)] == [kind, kind, "real"]
+        assert ma.modes() == [0, 2] and ma.oscillates(0) and not ma.oscillates(2)
+        assert list(ma.unstable) == [kind == "unstable osc."] * 2 + [False]
+        assert ma.is_stable == (kind == "oscillatory")
+        assert "+- 5j" in ma.table() or "+- 100j" in ma.table()
+        T, period, rule = VM._mode_horizon(0, ma, 5.0, 2.0)
+        if kind == "oscillatory":   # 5 periods of 2 pi / 5 s = 6.3 s, decay e^-10 at 0.1 s
+            assert (T, rule) == (pytest.approx(10.0 / 100.0), "decay e^-10")
+        else:                       # growth e^2 at 0.4 s, before 5 periods (0.31 s)
+            assert (T, rule) == (pytest.approx(5 * 2 * math.pi / 100.0), "5 periods")
+        assert period == pytest.approx(2 * math.pi / abs(ma.eigenvalues[0].imag))
 
 
 def test_direction_and_velocity_kick_match_the_mode():
