@@ -127,7 +127,8 @@ def response(model: LinearModel, t: np.ndarray | Sequence[float],
         t: Increasing sample times [s], N >= 1; x[0] is the state at t[0].
         x0: Initial state deviation (n), default zeros ([rad or m; rad/s or m/s]).
         u: None, a :class:`~pinlin.signals.Signal`, samples (N, m), or a callable u(t) -> (m,)
-            (see the module docstring).
+            (see the module docstring; an exception the callable raises reaches the caller
+            unchanged; what it returns must be m finite real numbers).
         method: ``"modal"`` (superposition of the decoupled modes) or ``"exact"`` (matrix
             exponential). Ignored for discrete models.
         modes: A :func:`pinlin.modal` analysis of the model (reused for ``"modal"``).

@@ -343,7 +343,8 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             v - v0] (2 nv); for a mechanism also 2 nz (its independent coordinates, the state
             of its linear model); given in all coordinates, the independent part is kept, the
             loops closed and v = R z'. Default zero.
-        u: Input deviations added to u0 [N*m or N]: a callable u(t) -> (nu,), an (N, nu)
+        u: Input deviations added to u0 [N*m or N]: a callable u(t) -> (nu,) (nu finite real
+            numbers; an exception it raises reaches the caller unchanged), an (N, nu)
             array, row k held from t[k] to t[k+1], or a :class:`~pinlin.Signal` of steps
             and sinusoids (``pinlin.step``, ``pinlin.harmonic``; an impulse is refused: it
             is a jump of the initial velocities). Default none.
