@@ -355,11 +355,12 @@ def test_small_resistance_beside_a_large_one_keeps_its_digits(shunt):
 
 
 def test_small_capacitor_beside_a_large_one_gets_its_share_exactly():
-    """Capacitors C1 = 9.24e-6 F and C5 = 1.584e-2 F in parallel (C1 the state, C5 dependent
-    storage), fed by Vs through R4, with R3 and two inductors across them. By hand (KCL at
-    their node, v = v:b1): (C1 + C5) v' = f_L0 + f_L6 - v/R3 + (Vs - v)/R4, and
-    f_C1 = C1 v' = C1/(C1 + C5) (...). Taken as the cutset's difference of large currents, the
-    share lost ~1e-13 (180 ulps); from the state equation it is exact to rounding."""
+    """Capacitors C1 = 9.24e-6 F and C5 = 1.584e-2 F in parallel (C5, the larger, the state;
+    C1 dependent storage), fed by Vs through R4, with R3 and two inductors across them. By
+    hand (KCL at their node, v = v:C1 = -v:C5): (C1 + C5) v' = f_L0 + f_L6 - v/R3 +
+    (Vs - v)/R4, and f_C1 = C1 v' = C1/(C1 + C5) (...). Taken as the cutset's difference of
+    large currents, the share lost ~1e-13 (180 ulps); from the state equation it is exact to
+    rounding."""
     C1, C5, R3, R4 = 9.24e-06, 0.01584, 0.07192, 0.0008979
     g = Graph("share")
     for b in [("L0", "T", "n2", "n0", 0.002965), ("C1", "A", "n0", "n1", C1),
@@ -368,10 +369,36 @@ def test_small_capacitor_beside_a_large_one_gets_its_share_exactly():
               ("L6", "T", "n1", "n0", 50020.0)]:
         g.add_branch(*b)
     m = g.linearize(outputs=["f:C1"])
-    assert m.state_names == ("f:L0", "v:C1", "f:L6")
+    assert m.state_names == ("f:L0", "v:C5", "f:L6")
     k = C1 / (C1 + C5)
     # a handful of roundings on either side (sums of C and 1/R, a solve, one product): 16 eps
     # leaves 8x the largest error measured (2 eps); the cutset's difference was 180 eps off.
     rtol = 16 * np.finfo(float).eps
-    np.testing.assert_allclose(m.C[0], [k, -k * (1 / R3 + 1 / R4), k], rtol=rtol)
+    np.testing.assert_allclose(m.C[0], [k, k * (1 / R3 + 1 / R4), k], rtol=rtol)
     np.testing.assert_allclose(m.D[0], [k / R4], rtol=rtol)
+
+
+@pytest.mark.parametrize("C0, C7", [(4.73792e-6, 713960.0), (1e-8, 1e8)])
+def test_dependent_capacitor_is_the_small_one(C0, C7):
+    """Three capacitors in a loop (C0 n0-n1, C7 n1-n2, C2 n2-n0), a through source across C7
+    and a resistor across C2. In file order C7 (listed after C0 and C2) was the dependent one:
+    its value relative to the tree's (1e16) was added to 1 and rounded the answer away (B
+    off by 1.6e-5, then of the wrong sign). Reference by nodal analysis (ground n0, KCL at
+    n1 and n2): v:C2 / F = C0 / (s (C0 C2 + C0 C7 + C2 C7) + (C0 + C7) / R), so the state
+    v:C2 has B = C0 / (C0 C2 + C0 C7 + C2 C7)."""
+    C2, R = 0.00298258, 6.102e-6
+    g = Graph("tri_caps", "translational")
+    for b in [("A0", "A", "n0", "n1", C0), ("A2", "A", "n2", "n0", C2),
+              ("S5", "through_source", "n1", "n2"), ("A7", "A", "n1", "n2", C7),
+              ("D10", "D", "n2", "n0", R)]:
+        g.add_branch(*b)
+    m = g.linearize(outputs=["v:A2"])
+    assert "A0" in g.normal_tree().dependent
+    den = C0 * C2 + C0 * C7 + C2 * C7
+    k = m.state_names.index("v:A2")
+    # a few roundings in forming and solving the state equation: 16 eps
+    np.testing.assert_allclose(m.B[k, 0], C0 / den, rtol=16 * np.finfo(float).eps)
+    for s in (1e3j, 1.0, 1e-3 + 1e2j):
+        H = (m.C @ np.linalg.solve(s * np.eye(len(m.A)) - m.A, m.B) + m.D)[0, 0]
+        # |dH| <= eps K with K / |H| = 2.6 here (helper analysis): 1e-12 leaves 1000x
+        assert abs(H - C0 / (s * den + (C0 + C7) / R)) <= 1e-12 * abs(H), s

@@ -1,7 +1,7 @@
 """The normal tree of a linear graph (Rowell, steps 1-6) and its loop matrix.
 
-Across sources, then A-type, D-type and T-type elements enter the tree greedily (file order
-within a type; D-type by increasing resistance, :func:`_tree_rank`) while they close no loop;
+Across sources, then A-type, D-type and T-type elements enter the tree greedily (within a
+type the largest admittance first, :func:`_tree_rank`) while they close no loop;
 an across source that cannot enter means a loop of across sources, a through source that must
 enter means a cut-set of through sources: both are errors. A-type links and T-type tree
 branches are dependent energy storage. Primary variables are the across variables of tree
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from .graph import Graph
 
 _PRIORITY = {"across_source": 0, "A": 1, "D": 2, "T": 3, "through_source": 4}
-"""Order in which branch types enter the normal tree (file order within a type)."""
+"""Order in which branch types enter the normal tree (within a type: :func:`_tree_rank`)."""
 
 
 @dataclass
@@ -112,16 +112,28 @@ def find_normal_tree(graph: Graph) -> tuple[NormalTree, list[bool]]:
 
 
 def _tree_rank(b: Branch, k: int) -> tuple[int, float, int]:
-    """Sort key of the greedy tree: type priority, then, among resistances, the smallest first.
+    """Sort key of the greedy tree: type priority, then within a type the largest admittance
+    first (file order among equals; nonlinear elements, value None here, after the linear
+    ones): the maximum-admittance tree.
 
-    A link's across variable is the sum of tree across variables around its loop. With a large
-    resistance in the tree beside a small one among the links, that sum cancels: a 1 ohm
-    resistor in the tree and 1e-17 ohm across the inductor it feeds leave v_L = Vs - v_R,
-    both ~Vs, and lose every digit of v_L ~ 1e-17 Vs. With the small resistances in the tree
-    (its across variables small, the large ones' through variables taken as links) no sum
-    cancels: the maximum-conductance tree. Nonlinear ones (value None here) follow."""
-    if b.type == "D":
-        return _PRIORITY["D"], math.inf if b.value is None else float(b.value), k
+    Resistances (D), the smallest first: a link's across variable is the sum of tree across
+    variables around its loop. With a large resistance in the tree beside a small one among
+    the links, that sum cancels: a 1 ohm resistor in the tree and 1e-17 ohm across the
+    inductor it feeds leave v_L = Vs - v_R, both ~Vs, and lose every digit of v_L ~ 1e-17 Vs.
+    With the small resistances in the tree no sum cancels.
+
+    Capacitances (A), the largest first, and inductances (T), the smallest first: where storage
+    elements form a loop (A) or a cut-set (T), those left out (A links, T tree branches) are
+    dependent, and the state equations add their values, relative to the independent ones
+    they are tied to, to an identity (I - Q K R M in :mod:`pinlin.graph.solve`). A 1e8 F
+    capacitor dependent on a 1e-8 F one adds 1e16 to 1 and rounds away the answer (B and H
+    with the wrong sign, measured); the same loop with the 1e8 F one in the tree adds 1e-16.
+    """
+    if b.type in ("A", "T", "D"):
+        if b.value is None:
+            return _PRIORITY[b.type], math.inf, k
+        value = float(b.value)
+        return _PRIORITY[b.type], -value if b.type == "A" else value, k
     return _PRIORITY[b.type], 0.0, k
 
 
