@@ -28,6 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import ArgumentError, PinlinError
+from .fields import show
 from .operating_point import OperatingPoint
 from .system import System
 
@@ -77,7 +78,7 @@ def resolve_steps(backend: str, step: float | Mapping[str, float] | None) -> dic
                                     f"got {type(step).__name__}")
     for key, value in given.items():
         if key not in STEP_KEYS:
-            raise ArgumentError("step", f"unknown step key {key!r}; expected "
+            raise ArgumentError("step", f"unknown step key {show(key)}; expected "
                                         f"{', '.join(STEP_KEYS)}")
         try:  # complex numbers too: float() would drop their imaginary part
             h = float(value) if not isinstance(value, bool | str | complex | np.complexfloating) \
@@ -86,7 +87,7 @@ def resolve_steps(backend: str, step: float | Mapping[str, float] | None) -> dic
             h = float("nan")
         if not (np.isfinite(h) and h > 0):
             raise ArgumentError("step", f"finite-difference step must be a positive number, "
-                                        f"got {value!r}")
+                                        f"got {show(value)}")
         if not STEP_MIN <= h <= STEP_MAX:
             raise ArgumentError("step", f"finite-difference step {h:g} is outside "
                                         f"[{STEP_MIN:g}, {STEP_MAX:g}] (rad, m, rad/s, m/s, N*m "

@@ -22,10 +22,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .arrays import non_numbers
+from .arrays import non_numbers, real_array
 from .conditioning import AccuracyWarning, refuse_condition, singular_to_working_precision
 from .equilibrium import ConstrainedPoint, input_vector, solve_constrained
 from .exceptions import ArgumentError, ModelError, ShapeError
+from .fields import show
 from .formulations import (
     linearize_canonical,
     linearize_independent,
@@ -48,11 +49,13 @@ from .operating_point import (
     velocity_vector,
 )
 from .options import (
+    PENALTY_DEFAULTS,
     Analytic,
     Canonical,
     Derivatives,
     Formulation,
     Independent,
+    Penalty,
     derivatives_from,
     formulation_from,
 )
@@ -85,13 +88,13 @@ def _flag(name: str, value: object) -> bool | None:
     """A boolean option (None: not given); strings such as "no" are refused, not truthy."""
     if value is None or isinstance(value, bool | np.bool_):
         return None if value is None else bool(value)
-    raise ArgumentError(name, f"expected True or False, got {value!r}")
+    raise ArgumentError(name, f"expected True or False, got {show(value)}")
 
 
 def _choice(name: str, value: object, choices: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise ArgumentError(name, f"expected one of {', '.join(repr(c) for c in choices)}, got "
-                                  f"{value!r}")
+                                  f"{show(value)}")
     return value
 
 
@@ -106,7 +109,7 @@ def _configuration(system: System, q: object) -> np.ndarray:
         q0 = np.array(q, dtype=float)
     except (TypeError, ValueError, OverflowError):
         raise ArgumentError("q", f"expected {system.nq} numbers (the configuration of scene "
-                                 f"'{system.scene.name}'), got {q!r:.80}") from None
+                                 f"'{system.scene.name}'), got {show(q)}") from None
     if q0.shape != (system.nq,):
         raise ShapeError(f"q must have nq = {system.nq} entries for scene "
                          f"'{system.scene.name}', got shape {q0.shape}")
@@ -146,13 +149,13 @@ def _vector(name: str, value: object, size: int, what: str) -> np.ndarray:
     try:
         out = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise ArgumentError(name, f"expected {size} numbers ({what}), got {value!r:.80}") \
+        raise ArgumentError(name, f"expected {size} numbers ({what}), got {show(value)}") \
             from None
     if out.shape != (size,):
         raise ArgumentError(name, f"expected {size} numbers ({what}), got shape {out.shape}")
     if not np.all(np.isfinite(out)) or np.abs(out).max(initial=0.0) > COEFFICIENT_LIMIT:
         raise ArgumentError(name, f"expected finite {what} within {COEFFICIENT_LIMIT:g}, got "
-                                  f"{value!r:.80}")
+                                  f"{show(value)}")
     return out
 
 
@@ -192,10 +195,14 @@ def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None 
     configuration and anchors the scene's contacts where it puts their frames; ``v``
     and ``u`` give the state, as for :func:`linearize`).
 
-    ``mass_inverse`` is M(q0)^-1 when the caller has it already; ``allow_ill_conditioned`` as
-    for :func:`linearize` (M^-1 is needed off equilibrium, for the acceleration a0).
+    ``mass_inverse`` is M(q0)^-1 when the caller has it already (nv x nv [1/kg, 1/(kg m^2)],
+    finite, positive on its diagonal; used as given for the acceleration a0 off equilibrium);
+    ``allow_ill_conditioned`` as for :func:`linearize` (M^-1 is needed off equilibrium, for
+    the acceleration a0).
     """
     system = _system(scene)
+    if mass_inverse is not None:
+        mass_inverse = _mass_inverse_argument(system, mass_inverse)
     allow = _flag("allow_non_equilibrium", allow_non_equilibrium)
     ill = bool(_flag("allow_ill_conditioned", allow_ill_conditioned))
     q0 = _configuration(system, q)
@@ -207,6 +214,22 @@ def operating_point(scene: Scene | System | str | Path, *, q: np.ndarray | None 
     return resolve_operating_point(system, q0, allow_non_equilibrium=allow,
                                    mass_inverse=mass_inverse, allow_ill_conditioned=ill,
                                    state=state)[0]
+
+
+def _mass_inverse_argument(system: System, value: object) -> np.ndarray:
+    """``value`` as M^-1 (nv x nv float64), or an ArgumentError: not real numbers, the wrong
+    shape, NaN or inf, or a diagonal that is not positive (no inverse of a mass matrix has
+    one)."""
+    nv = system.nv
+    arr = real_array(value, "mass_inverse", f"an {nv} x {nv} matrix M(q0)^-1")
+    if arr.shape != (nv, nv):
+        raise ArgumentError("mass_inverse", f"expected an {nv} x {nv} matrix M(q0)^-1 (scene "
+                                            f"'{system.scene.name}'), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)) or not np.all(arr.diagonal() > 0.0):
+        raise ArgumentError("mass_inverse", "expected finite entries and a positive diagonal "
+                                            "(the inverse of a mass matrix is positive "
+                                            "definite)")
+    return arr
 
 
 def _check_basis(system: System, form: Formulation) -> None:
@@ -297,7 +320,12 @@ def linearize(scene: Scene | System | str | Path, *,
     system = _system(scene)
     _check_basis(system, form)
     if not system.constraints:   # like basis: settings with nothing to act on are refused
-        for key, value in (("alpha", alpha), ("mu", mu), ("omega", omega)):
+        settings = (("alpha", alpha), ("mu", mu), ("omega", omega))
+        if isinstance(form, Penalty):   # an option object set away from its defaults
+            settings += tuple((f"formulation ({type(form).__name__}.{key})", value)
+                              for key, value in ((k, getattr(form, k)) for k in PENALTY_DEFAULTS)
+                              if value != PENALTY_DEFAULTS[key])
+        for key, value in settings:
             if value is not None:
                 raise ArgumentError(key, f"scene '{system.scene.name}' has no loops, contacts "
                                          "or mimic couplings: the penalty and canonical "

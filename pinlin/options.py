@@ -22,7 +22,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from .exceptions import ArgumentError
+from .fields import show
 
 #: Default penalty parameters: alpha [kg or kg*m^2 per row unit^2], Omega [rad/s], mu [-].
 PENALTY_DEFAULTS = {"alpha": 1e7, "omega": 10.0, "mu": 1.0}
@@ -36,14 +39,14 @@ BASES = ("partitioned", "orthonormal")
 def _positive(name: str, value: Any) -> float:
     """A finite number > 0, or an ArgumentError naming ``name``."""
     try:
-        if isinstance(value, bool | str):
+        if isinstance(value, bool | np.bool_ | str):
             raise TypeError
         out = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise ArgumentError(name, f"penalty {name} must be a number, got {value!r:.40}") \
+        raise ArgumentError(name, f"penalty {name} must be a number, got {show(value)}") \
             from None
     if not (math.isfinite(out) and out > 0):
-        raise ArgumentError(name, f"penalty {name} must be a finite number > 0, got {value!r}")
+        raise ArgumentError(name, f"penalty {name} must be a finite number > 0, got {show(value)}")
     return out
 
 
@@ -64,7 +67,7 @@ class Independent:
         if self.basis is not None and (not isinstance(self.basis, str)
                                        or self.basis not in BASES):
             raise ArgumentError("basis", f"expected one of {', '.join(map(repr, BASES))}, got "
-                                         f"{self.basis!r}")
+                                         f"{show(self.basis)}")
 
 
 @dataclass(frozen=True)
@@ -135,11 +138,11 @@ class FiniteDifferences:
         order = self.order          # 3 or np.int64(3); 3.0 and True are refused
         if isinstance(order, bool) or not isinstance(order, numbers.Integral) \
                 or order not in (3, 5):
-            raise ArgumentError("order", f"expected 3 or 5 points, got {order!r}")
+            raise ArgumentError("order", f"expected 3 or 5 points, got {show(order)}")
         object.__setattr__(self, "order", int(order))
         if not isinstance(self.estimate_error, bool):
             raise ArgumentError("estimate_error", f"expected True or False, got "
-                                                  f"{self.estimate_error!r}")
+                                                  f"{show(self.estimate_error)}")
         resolve_steps(self.name, self.step)  # checks the step
 
     @property
@@ -168,7 +171,7 @@ def formulation_from(formulation: Any, basis: Any = None, alpha: Any = None, mu:
     if not isinstance(formulation, str) or formulation not in FORMULATIONS:
         raise ArgumentError("formulation", f"expected one of "
                                            f"{', '.join(map(repr, FORMULATIONS))} or an option "
-                                           f"object (pinlin.Penalty(...)), got {formulation!r}")
+                                           f"object (pinlin.Penalty(...)), got {show(formulation)}")
     if formulation == "independent":
         for key, value in given.items():
             _positive(key, value)  # a bad value is reported as such first
@@ -191,13 +194,16 @@ def derivatives_from(derivatives: Any, step: Any = None, estimate_error: Any = T
         if step is not None:
             raise ArgumentError("step", f"set it on the {type(derivatives).__name__} object "
                                         "given as derivatives, not beside it")
+        if estimate_error is not True:
+            raise ArgumentError("estimate_error", "set it on the FiniteDifferences object given "
+                                                  "as derivatives, not beside it")
         return derivatives
     if not isinstance(derivatives, str) or derivatives not in DERIVATIVES:
         raise ArgumentError("derivatives", f"expected one of {', '.join(map(repr, DERIVATIVES))}"
                                            f" or an option object (pinlin.FiniteDifferences("
-                                           f"...)), got {derivatives!r}")
+                                           f"...)), got {show(derivatives)}")
     if not isinstance(estimate_error, bool):
-        raise ArgumentError("estimate_error", f"expected True or False, got {estimate_error!r}")
+        raise ArgumentError("estimate_error", f"expected True or False, got {show(estimate_error)}")
     if derivatives == "analytic":
         if step is not None:
             raise ArgumentError("step", "a finite-difference step applies to derivatives "

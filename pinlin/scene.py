@@ -132,6 +132,10 @@ _TOP_KEYS = ("name", "urdf", "robot", "base", "effects", "operating_point", "inp
              "loops", "contacts")
 _OP_KEYS = ("q", "v", "independent", "solve", "u", "allow_non_equilibrium")
 _SOLVE_MODES = ("inputs", "positions", "none", "forces")
+_U_WITH_INPUTS = ("inputs are given only with solve = \"positions\", \"forces\" or \"none\" "
+                  "(with \"inputs\" pinlin finds them)")
+_V_NOT_NONE = ("velocities are given only with solve = \"none\" (the other modes find a point "
+               "at rest)")
 
 
 @dataclass(frozen=True)
@@ -168,20 +172,33 @@ class OperatingPointSpec:
     v: JointValues = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        """Check the fields as the scene file's are checked (also for a spec built in Python or
-        changed with ``dataclasses.replace``)."""
+        """Check the fields as the scene file's are checked, and store them as the file's
+        parser does (numbers as floats, lists as tuples, names as a tuple): a spec built in
+        Python or changed with ``dataclasses.replace`` reads like one from a file (a numpy
+        array or list for a free flyer's q was otherwise taken for a table and ignored)."""
         flag(None, "operating_point.allow_non_equilibrium", self.allow_non_equilibrium)
-        for j, x in joint_table(None, "operating_point.q", self.q).items():
-            joint_position(None, f"operating_point.q.{j}", x)
-        name_list(None, "operating_point.independent", list(self.independent))
-        joint_values(None, "operating_point.u", self.u, unit=" [N*m or N]",
-                     limit=COEFFICIENT_LIMIT)
-        joint_values(None, "operating_point.v", self.v, unit=" [rad/s or m/s]",
-                     limit=COEFFICIENT_LIMIT)
-        if self.solve not in _SOLVE_MODES:
+        q = {j: joint_position(None, f"operating_point.q.{j}", x)
+             for j, x in joint_table(None, "operating_point.q", self.q).items()}
+        if isinstance(self.independent, str):   # list("crank") would be its letters
+            raise SceneError(None, "operating_point.independent",
+                             f"expected a list of joint names, got {show(self.independent)}")
+        independent = name_list(None, "operating_point.independent",
+                                self.independent if isinstance(self.independent, list | tuple)
+                                else list(self.independent))
+        u = joint_values(None, "operating_point.u", self.u, unit=" [N*m or N]",
+                         limit=COEFFICIENT_LIMIT)
+        v = joint_values(None, "operating_point.v", self.v, unit=" [rad/s or m/s]",
+                         limit=COEFFICIENT_LIMIT)
+        if not isinstance(self.solve, str) or self.solve not in _SOLVE_MODES:
             raise SceneError(None, "operating_point.solve",
                              f"expected one of {', '.join(repr(c) for c in _SOLVE_MODES)}, "
                              f"got {show(self.solve)}")
+        if u and self.solve == "inputs":
+            raise SceneError(None, "operating_point.u", _U_WITH_INPUTS)
+        if v and self.solve != "none":
+            raise SceneError(None, "operating_point.v", _V_NOT_NONE)
+        for key, value in (("q", q), ("independent", independent), ("u", u), ("v", v)):
+            object.__setattr__(self, key, value)
 
 
 @dataclass(frozen=True)
@@ -195,6 +212,18 @@ class Outputs:
 
     frames: tuple[str, ...] = ()
     joints: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:   # Outputs built in Python are checked as the file's
+        for key in ("frames", "joints"):
+            value = getattr(self, key)
+            if isinstance(value, str):   # tuple("tool0") would be its letters
+                raise SceneError(None, f"outputs.{key}", f"expected a list of names, got "
+                                                         f"{show(value)}")
+            object.__setattr__(self, key, name_list(
+                None, f"outputs.{key}", list(value) if isinstance(value, np.ndarray) else value))
+        if not self.frames and not self.joints:
+            raise SceneError(None, "outputs", "is empty; name frames or joints, or leave the "
+                                              "outputs out (None) for the whole state")
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,14 +258,47 @@ class Scene:
     contacts: tuple[Contact, ...] = ()
 
     def __post_init__(self) -> None:
-        """The fields a Python caller can get wrong without a parser to refuse them."""
+        """The fields a Python caller can get wrong without a parser to refuse them (a Scene
+        built directly or changed with ``dataclasses.replace``)."""
+        src = self.source
+        string(src, "name", self.name)
         if self.base not in (None, "fixed", "free"):
-            raise SceneError(self.source, "base", f"expected \"fixed\" or \"free\", got "
-                                                  f"{show(self.base)}")
+            raise SceneError(src, "base", f"expected \"fixed\" or \"free\", got "
+                                          f"{show(self.base)}")
+        if (self.urdf is None) == (self.robot is None):
+            raise SceneError(src, "urdf", "give exactly one of 'urdf' (a file) or 'robot' (an "
+                                          "example-robot-data name)")
+        if self.robot is not None:
+            string(src, "robot", self.robot)
+        elif not isinstance(self.urdf, Path):
+            raise SceneError(src, "urdf", f"expected a pathlib.Path, got {show(self.urdf)}")
         for key, kind in (("effects", Effects), ("operating_point", OperatingPointSpec)):
             if not isinstance(getattr(self, key), kind):
-                raise SceneError(self.source, key, f"expected a {kind.__name__}, got "
-                                                   f"{show(getattr(self, key))}")
+                raise SceneError(src, key, f"expected a {kind.__name__}, got "
+                                           f"{show(getattr(self, key))}")
+        inputs = self.inputs
+        if isinstance(inputs, str):
+            string(src, "inputs.actuated", inputs, ("all",))
+        else:
+            if isinstance(inputs, np.ndarray):
+                inputs = inputs.tolist()
+            object.__setattr__(self, "inputs", name_list(src, "inputs.actuated", inputs))
+        if self.outputs is not None and not isinstance(self.outputs, Outputs):
+            raise SceneError(src, "outputs", f"expected an Outputs or None, got "
+                                             f"{show(self.outputs)}")
+        taken: set[str] = set()
+        for key, kind in (("loops", Loop), ("contacts", Contact)):
+            items = getattr(self, key)
+            if not isinstance(items, tuple | list) or \
+                    not all(isinstance(item, kind) for item in items):
+                raise SceneError(src, key, f"expected a tuple of {kind.__name__} objects, got "
+                                           f"{show(items)}")
+            for item in items:
+                if item.name in taken:
+                    raise SceneError(src, key, f"name '{item.name}' is used twice; loops and "
+                                               "contacts need distinct names")
+                taken.add(item.name)
+            object.__setattr__(self, key, tuple(items))
 
     # ----------------------------------------------------------------------------------------
     @classmethod
@@ -257,14 +319,18 @@ class Scene:
         return cls.from_dict(data, source=path)
 
     @classmethod
-    def from_robot(cls, name: str, **overrides: Any) -> Scene:
+    def from_robot(cls, name: str, /, **overrides: Any) -> Scene:
         """Scene for an example-robot-data robot: gravity, and armature where its loader sets it.
 
         Args:
             name: Robot name as in ``example_robot_data`` (``pinlin robots`` lists them).
             **overrides: Top-level scene fields in the TOML's dict form (``base``, ``effects``,
-                ``operating_point``, ``inputs``, ``outputs``, ``name``); each replaces the whole
-                default field.
+                ``operating_point``, ``inputs``, ``outputs``, ``name``, ``loops``,
+                ``contacts``); each replaces the whole default field.
+
+        Raises:
+            ArgumentError: ``name`` is not a robot name; an override that is not one of those
+                fields (``robot``, ``urdf``: the model is ``name``).
         """
         from .robots import load_robot
 
@@ -275,15 +341,17 @@ class Scene:
         if np.any(load_robot(name).model.armature):
             effects["armature"] = True
         data: dict[str, Any] = {"name": name, "robot": name, "effects": effects}
-        data.update(overrides)
+        data.update(_overrides(overrides, "robot"))
         return cls.from_dict(data)
 
     @classmethod
-    def from_urdf(cls, path: str | Path, **overrides: Any) -> Scene:
-        """Scene for a URDF file: fixed base, standard gravity, all joints actuated.
+    def from_urdf(cls, path: str | Path, /, **overrides: Any) -> Scene:
+        """Scene for a URDF file: fixed base, standard gravity, all joints actuated;
+        ``overrides`` as for :meth:`from_robot`.
 
         Raises:
-            ArgumentError: ``path`` is not a path (str or os.PathLike).
+            ArgumentError: ``path`` is not a path (str or os.PathLike); an override that is not
+                a scene field (``robot``, ``urdf``: the model is ``path``).
         """
         path = path_argument("path", path).resolve()
         data: dict[str, Any] = {
@@ -291,7 +359,7 @@ class Scene:
             "urdf": str(path),
             "effects": {"gravity": list(STANDARD_GRAVITY)},
         }
-        data.update(overrides)
+        data.update(_overrides(overrides, "urdf"))
         return cls.from_dict(data)
 
     @classmethod
@@ -363,6 +431,24 @@ def bundled_scenes() -> dict[str, Path]:
     return {p.stem: p for p in sorted(bundled_folder().glob("*.toml"))}
 
 
+#: The top-level fields ``Scene.from_robot`` and ``Scene.from_urdf`` take as overrides (the
+#: model itself is the method's argument).
+_OVERRIDES = ("name", "base", "effects", "operating_point", "inputs", "outputs", "loops",
+              "contacts")
+
+
+def _overrides(overrides: Mapping[str, Any], what: str) -> Mapping[str, Any]:
+    """``overrides`` if each key is a scene field a constructor may override, else an
+    ArgumentError naming the first that is not (``robot`` and ``urdf`` are the model, given as
+    the constructor's own argument: overriding it silently built another robot)."""
+    for key in overrides:
+        if key not in _OVERRIDES:
+            raise ArgumentError(key, f"not a scene field this constructor overrides; expected "
+                                     f"one of {', '.join(_OVERRIDES)} (the {what} is the "
+                                     "first argument)")
+    return overrides
+
+
 def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     tbl = table(src, "operating_point", x)
     check_keys(src, "operating_point", tbl, _OP_KEYS)
@@ -377,16 +463,11 @@ def _parse_operating_point(src, x: Any) -> OperatingPointSpec:
     u = joint_values(src, "operating_point.u", tbl.get("u", {}), unit=" [N*m or N]",
                      limit=COEFFICIENT_LIMIT)
     if u and solve == "inputs":
-        raise SceneError(src, "operating_point.u", "inputs are given only with "
-                                                   "solve = \"positions\", \"forces\" or "
-                                                   "\"none\" (with \"inputs\" pinlin finds "
-                                                   "them)")
+        raise SceneError(src, "operating_point.u", _U_WITH_INPUTS)
     v = joint_values(src, "operating_point.v", tbl.get("v", {}), unit=" [rad/s or m/s]",
                      limit=COEFFICIENT_LIMIT)
     if v and solve != "none":
-        raise SceneError(src, "operating_point.v", "velocities are given only with solve = "
-                                                   "\"none\" (the other modes find a point "
-                                                   "at rest)")
+        raise SceneError(src, "operating_point.v", _V_NOT_NONE)
     allow = flag(src, "operating_point.allow_non_equilibrium",
                  tbl.get("allow_non_equilibrium", False))
     return OperatingPointSpec(q, independent, solve, u, allow, v)

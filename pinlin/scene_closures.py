@@ -39,6 +39,14 @@ class Loop:
     frame1: str
     frame2: str
 
+    def __post_init__(self) -> None:   # a Loop built in Python is checked as the file's
+        string(None, "loops.name", self.name)
+        string(None, f"loops.{self.name}.type", self.type, LOOP_TYPES)
+        for key in ("frame1", "frame2"):
+            string(None, f"loops.{self.name}.{key}", getattr(self, key))
+        if self.frame1 == self.frame2:
+            raise SceneError(None, f"loops.{self.name}.frame2", "must differ from frame1")
+
 
 @dataclass(frozen=True)
 class Contact:
@@ -56,6 +64,11 @@ class Contact:
     name: str
     type: str
     frame: str
+
+    def __post_init__(self) -> None:   # a Contact built in Python is checked as the file's
+        string(None, "contacts.name", self.name)
+        string(None, f"contacts.{self.name}.type", self.type, CONTACT_TYPES)
+        string(None, f"contacts.{self.name}.frame", self.frame)
 
 
 def _entries(src: Source, key: str, x: Any) -> list[Any]:

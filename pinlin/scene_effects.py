@@ -104,13 +104,14 @@ class Effects:
         """Check the fields as the scene file's are checked (an Effects built in Python, or
         changed with ``dataclasses.replace``, gets the same refusals)."""
         flag(None, "effects.mimic", self.mimic)
-        if self.gravity is not None:
-            number_list(None, "effects.gravity", self.gravity, length=3, unit=" [m/s^2]",
-                        limit=COEFFICIENT_LIMIT)
+        if self.gravity is not None:   # stored as the file's parser does: a tuple of floats
+            object.__setattr__(self, "gravity", number_list(
+                None, "effects.gravity", self.gravity, length=3, unit=" [m/s^2]",
+                limit=COEFFICIENT_LIMIT))
         for key, unit in (("armature", " [kg*m^2 or kg]"), ("damping", " [N*m*s/rad or N*s/m]")):
             value = getattr(self, key)
             if value is not None and value is not False:
-                _per_joint(None, f"effects.{key}", value, unit)
+                object.__setattr__(self, key, _per_joint(None, f"effects.{key}", value, unit))
         if self.springs is not None:
             joint_table(None, "effects.springs", self.springs)
             for joint, spring in self.springs.items():
