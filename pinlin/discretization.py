@@ -76,14 +76,14 @@ def discretize(model, dt: float, method: str = "zoh"):
     if model.dt:
         raise ArgumentError("model", f"model '{model.name}' is already discrete (dt = "
                                      f"{model.dt:g} s)")
-    if model.E is not None and np.any(model.E):
-        raise ModelError(f"model '{model.name}' has input-derivative terms (E u'): discretize "
-                         "model.standard_form() instead, whose state is x - E u")
-    if model.F is not None and np.any(model.F):
+    if model.F is not None and np.any(model.F):   # (standard_form keeps F: said first)
         raise ModelError(f"model '{model.name}' has an output term F u' (input derivative): a "
                          "discrete model's inputs are held samples, which have no derivative; "
                          "discretize a model without it, or simulate the continuous one with a "
                          "Signal (pinlin.response)")
+    if model.E is not None and np.any(model.E):
+        raise ModelError(f"model '{model.name}' has input-derivative terms (E u'): discretize "
+                         "model.standard_form() instead, whose state is x - E u")
     dt = float(dt)
     n, m = model.B.shape
     f0 = np.zeros(n) if model.f0 is None else model.f0

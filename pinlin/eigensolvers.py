@@ -102,37 +102,37 @@ def geev_lwork(n: int, left: bool) -> int:
 GEEV_RANGE = (1e-130, 1e130)
 
 
-def geev_scale(A: np.ndarray, a2: float | None = None) -> float:
-    """A power of 2 that brings the largest |a_ij| of ``A`` into :data:`GEEV_RANGE` (near 1),
-    or 1.0 when it lies there already (``a2``: |A|_F^2 when the caller has it, which settles
-    the usual case without a pass over A: max|a_ij| lies in [|A|_F / n, |A|_F])."""
+def geev_scale(A: np.ndarray, a2: float | None = None) -> int:
+    """The power of 2, k, such that 2^k A has its largest |a_ij| in [0.5, 1) when that entry
+    lies outside :data:`GEEV_RANGE`, else 0 (``a2``: |A|_F^2 when the caller has it, which
+    settles the usual case without a pass over A: max|a_ij| lies in [|A|_F / n, |A|_F]).
+    Subnormal entries included: k up to ~1075."""
     n = max(A.shape[0], 1)
     lo, hi = GEEV_RANGE
     if a2 is not None and lo * lo * n * n < a2 < hi * hi:   # (a2 of tiny entries underflows)
-        return 1.0
+        return 0
     largest = max(float(A.max(initial=0.0)), -float(A.min(initial=0.0)))
     if largest == 0.0 or lo < largest < hi or not math.isfinite(largest):
-        return 1.0
-    return math.ldexp(1.0, -math.frexp(largest)[1])   # largest * scale in [0.5, 1)
+        return 0
+    return -math.frexp(largest)[1]
 
 
 def geev(A: np.ndarray, left: bool, a2: float | None = None) -> tuple[np.ndarray, ...]:
     """wr, wi, vl, vr of LAPACK dgeev (vl empty unless ``left``), as scipy.linalg.eig calls it;
-    a matrix with entries beyond :data:`GEEV_RANGE` is scaled by a power of 2 first and its
-    eigenvalues scaled back, both exact (the eigenvectors do not change). ``a2``: |A|_F^2 if
+    a matrix with entries beyond :data:`GEEV_RANGE` is scaled by a power of 2 first
+    (:func:`geev_scale`) and its eigenvalues scaled back, both exact (the eigenvectors do not
+    change). ``a2``: |A|_F^2 if
     known (:func:`geev_scale`)."""
-    scale = geev_scale(A, a2)
-    wr, wi, vl, vr, info = lapack.dgeev(A if scale == 1.0 else A * scale,
-                                        compute_vl=int(left),
+    k = geev_scale(A, a2)
+    wr, wi, vl, vr, info = lapack.dgeev(np.ldexp(A, k) if k else A, compute_vl=int(left),
                                         lwork=geev_lwork(A.shape[0], left))
     if info < 0:
         raise ValueError(f"illegal value in argument {-info} of internal eig algorithm (geev)")
     if info > 0:
         raise LinAlgError(f"eig algorithm (geev) did not converge (only eigenvalues with order "
                           f">= {info} have converged)")
-    if scale != 1.0:
-        wr /= scale
-        wi /= scale
+    if k:   # np.ldexp: exact, no 2^k to overflow where k > 1023
+        wr, wi = np.ldexp(wr, -k), np.ldexp(wi, -k)
     return wr, wi, vl, vr
 
 
@@ -234,7 +234,8 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
         k2 = np.einsum("ij,ij->i", inv, inv)
         moving = order[n_rigid:]                        # sorted, non-rigid, dgeev's indices
         k2_moving, lam_moving = (k2[moving], magnitudes[moving]) if n_rigid else (k2, magnitudes)
-        worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
+        with np.errstate(over="ignore"):   # a subnormal |lam|: inf, then LAPACK decides
+            worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
         frobenius = math.sqrt(a2 if a2 is not None and a2 < math.inf else np.vdot(A, A))
         if worst_column * _EPS * frobenius <= EIGENVALUE_RISK / RISK_MARGIN:   # False for NaN
             return

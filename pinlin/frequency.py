@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .arrays import real_array
 from .exceptions import ArgumentError, ModelError
 from .files import PNG_METADATA, check_file_target, write_atomic
 from .linear_model import LinearModel
@@ -107,10 +108,8 @@ def _select(chosen: Sequence[str] | str | None, names: tuple[str, ...], what: st
 
 
 def _frequencies(w: object) -> np.ndarray:
-    try:
-        arr = np.array(w, dtype=float).reshape(-1) if np.ndim(w) <= 1 else None
-    except (TypeError, ValueError):
-        arr = None
+    arr = real_array(w, "w", "a 1-D sequence of finite frequencies [rad/s]")
+    arr = arr.reshape(-1) if arr.ndim <= 1 else None
     if arr is None or arr.size == 0 or not np.all(np.isfinite(arr)):
         raise ArgumentError("w", "expected a 1-D sequence of finite frequencies [rad/s]")
     return arr

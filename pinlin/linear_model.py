@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import functools
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ import numpy as np
 
 from .arrays import non_numbers, real_array, sum_of_squares
 from .exceptions import ArgumentError, ModelError, PinlinError, ShapeError
+from .fields import clean, show
 from .files import as_path, check_file_target, write_bytes_atomic
 from .model_files import MATRICES, NAME_FIELDS, jsonable, model_format, read_model, serialize
 from .operating_point import OperatingPoint
@@ -40,7 +40,6 @@ _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 _jsonable = jsonable  # its name here before pinlin.model_files
 
 
-_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 
 @functools.lru_cache(maxsize=512)
@@ -48,7 +47,7 @@ def _valid_names(names: tuple) -> bool:
     """Whether a tuple holds distinct non-blank strings without control characters (cached:
     models of one system share their names)."""
     return (all(type(s) is str and s.strip() for s in names) and len(set(names)) == len(names)
-            and not _CONTROL.search("".join(names)))
+            and clean("".join(names)))
 
 
 #: Name tuples already found distinct, by id (the tuple itself is kept, so its id cannot be
@@ -89,9 +88,10 @@ def _names(key: str, value: Any, model: str) -> tuple[str, ...]:
         at = next(k for k, s in enumerate(names) if not s.strip())
         raise ArgumentError(key, f"the name at position {at} is empty or blank: every signal "
                                  f"needs a name that a file can carry and a user can select")
-    odd = next((s for s in names if _CONTROL.search(s)), None)
+    odd = next((s for s in names if not clean(s)), None)
     if odd is not None:
-        raise ArgumentError(key, f"name {odd!r} has control characters (a line break, a tab): "
+        raise ArgumentError(key, f"name {show(odd)} has control characters (a line break, a tab, "
+                                 "a line separator): "
                                  "they would break the one-line messages and the CSV and "
                                  "MATLAB files that carry names")
     if not _valid_names(names):
@@ -185,18 +185,22 @@ def _check_second_order(model: LinearModel) -> None:
     # rows were formed with an inverse that has no correct digit, and it must still load.
     allowed = SECOND_ORDER_MARGIN * nv * eps * cond if math.isfinite(cond) else math.inf
     norm = np.linalg.norm
-    checks = (
-        ("A[:nv, nv:] (the identity)", norm(A[:nv, nv:] - np.eye(nv)), float(nv) ** 0.5),
-        ("B[:nv] (zero)", norm(B[:nv]), norm(B)),
-        ("M A[nv:, :nv] + K", norm(M @ A[nv:, :nv] + model.K),
-         norm(M) * norm(A[nv:, :nv]) + norm(model.K)),
-        ("M A[nv:, nv:] + C_damp", norm(M @ A[nv:, nv:] + model.C_damp),
-         norm(M) * norm(A[nv:, nv:]) + norm(model.C_damp)),
-        ("M B[nv:] - Bu", norm(M @ B[nv:] - model.Bu), norm(M) * norm(B[nv:]) + norm(model.Bu)),
-    )
+    with np.errstate(all="ignore"):   # overflow is refused below, by name
+        checks = (
+            ("A[:nv, nv:] (the identity)", norm(A[:nv, nv:] - np.eye(nv)), float(nv) ** 0.5),
+            ("B[:nv] (zero)", norm(B[:nv]), norm(B)),
+            ("M A[nv:, :nv] + K", norm(M @ A[nv:, :nv] + model.K),
+             norm(M) * norm(A[nv:, :nv]) + norm(model.K)),
+            ("M A[nv:, nv:] + C_damp", norm(M @ A[nv:, nv:] + model.C_damp),
+             norm(M) * norm(A[nv:, nv:]) + norm(model.C_damp)),
+            ("M B[nv:] - Bu", norm(M @ B[nv:] - model.Bu),
+             norm(M) * norm(B[nv:]) + norm(model.Bu)),
+        )
     for what, residual, scale in checks:
         limit = allowed * scale if what.startswith("M ") else 100.0 * nv * eps * scale
-        if residual > limit:   # a NaN residual cannot occur: the matrices are finite
+        # A product of finite entries may overflow (inf, or inf - inf = NaN): refused, as the
+        # model's dynamics could not be checked (M = 1e200 against A = 1e200).
+        if not residual <= limit or (not math.isfinite(residual) and allowed < math.inf):
             raise ModelError(
                 f"model '{model.name}': its second-order matrices describe other dynamics than "
                 f"A and B (x = [dq; v], A = [[., I], [-M^-1 K, -M^-1 C_damp]], B = [[0], "
@@ -284,7 +288,7 @@ class LinearModel:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
             raise ArgumentError("name", f"expected a str, got {type(self.name).__name__}")
-        if _CONTROL.search(self.name):
+        if not clean(self.name):
             raise ArgumentError("name", f"expected a name without control characters (tab, "
                                         f"newline: it appears in one-line messages), got "
                                         f"{self.name!r:.60}")
@@ -332,6 +336,14 @@ class LinearModel:
         if not isinstance(self.info, Mapping):
             raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
         object.__setattr__(self, "info", dict(self.info))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickling: the fields as pickled, the arrays read-only again (pickle hands numpy
+        arrays back writeable)."""
+        self.__dict__.update(state)
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
 
     @classmethod
     def assembled(cls, **fields: Any) -> LinearModel:

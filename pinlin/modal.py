@@ -27,8 +27,12 @@ once). The warning, when due, names the eigenvalue and its condition number from
 (they agree with LAPACK's left vectors to ~cond(V) eps relative: 1e-11 on well conditioned
 robots, a few 1e-4 at kappa ~ 1e14, where no digit beyond the first means anything). LAPACK's
 left vectors (a second ``dgeev``) are computed only where V is exactly singular or the risk
-lies within :func:`pinlin.eigensolvers.risk_margin` of the threshold, or when
-:attr:`ModalAnalysis.left_vectors` or :attr:`ModalAnalysis.condition` is read.
+lies within :func:`pinlin.eigensolvers.risk_margin` of the threshold, when
+:attr:`ModalAnalysis.left_vectors`, :attr:`ModalAnalysis.condition` or
+:attr:`ModalAnalysis.rounding` is read (the table reads it), or where a real or imaginary part
+lies between 10 n eps |A|_F and rigid_tol when :meth:`ModalAnalysis.kind`,
+:meth:`ModalAnalysis.oscillates` or :attr:`ModalAnalysis.unstable` decides whether it is more
+than rounding (:func:`pinlin.modal_table.resolved`).
 
 Conventions: wn = |lam| [rad/s], zeta = -Re(lam) / |lam|. Eigenvalues with |lam| <= rigid_tol are
 rigid-body (zero) modes: wn = 0 and zeta = NaN by definition (never computed as 0/0), labelled
@@ -190,12 +194,14 @@ class ModalAnalysis:
     def unstable(self) -> np.ndarray:
         """Mask of exponentially growing modes: Re(lam) > 0 by more than rounding (above
         rigid_tol, or above 10 n times :attr:`rounding`: a slow unstable mode beside much
-        faster ones; :meth:`kind` says "unstable" for the same eigenvalues)."""
+        faster ones; :meth:`kind` says "unstable" for the same eigenvalues;
+        :func:`pinlin.modal_table.resolved`)."""
         re = self.eigenvalues.real
         out = re > self.rigid_tol
-        maybe = (re > 0.0) & ~out
+        margin = 10.0 * re.size
+        maybe = (re > margin * self.rounding_floor) & ~out
         if maybe.any():   # the rounding levels (condition numbers) only where they decide
-            out |= maybe & (re > 10.0 * re.size * self.rounding)
+            out |= maybe & (re > margin * self.rounding)
         return out
 
     @property
@@ -232,6 +238,14 @@ class ModalAnalysis:
         if self.method == "symmetric":
             kappa = np.where(self.rigid, np.inf, kappa)  # Jordan blocks are defective
         return kappa
+
+    @functools.cached_property
+    def rounding_floor(self) -> float:
+        """eps |A|_F [1/s]: the least :attr:`rounding` level any eigenvalue has (kappa >= 1),
+        without its condition numbers; 0 for the symmetric solver."""
+        if self.method == "symmetric":
+            return 0.0
+        return float(np.finfo(float).eps * np.linalg.norm(self.model.A))
 
     @functools.cached_property
     def rounding(self) -> np.ndarray:
@@ -313,10 +327,11 @@ class ModalAnalysis:
         return modal_table.constraint(self)
 
     def oscillates(self, index: int) -> bool:
-        """Whether eigenvalue ``index`` has an imaginary part: above ``rigid_tol`` or above its
-        own rounding level (:attr:`rounding`; a slow oscillation beside much faster modes,
-        whose rigid_tol is larger than its imaginary part). An eigenvalue that does not is
-        real: its row shows no +-j and its kind is "real", "unstable" or "rigid".
+        """Whether eigenvalue ``index`` has an imaginary part: above ``rigid_tol`` or above 10 n
+        times its rounding level (:attr:`rounding`; a slow oscillation beside much faster
+        modes, whose rigid_tol is larger than its imaginary part;
+        :func:`pinlin.modal_table.resolved`). An eigenvalue that does not is real: its row
+        shows no +-j and its kind is "real", "unstable" or "rigid".
 
         Raises:
             ArgumentError: ``index`` is not an eigenvalue index 0 <= index < n.

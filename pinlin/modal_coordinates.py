@@ -42,6 +42,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.linalg import lapack
 
+from .arrays import real_array
 from .exceptions import ArgumentError, ShapeError
 
 if TYPE_CHECKING:
@@ -144,7 +145,12 @@ class ModalCoordinates:
         r = _states(r, self.right.shape[0], "r")
         out = r @ self.matrix.T + self.drift
         if u is not None:
-            out = out + np.asarray(u, dtype=float) @ self.input_matrix.T
+            m = self.input_matrix.shape[1]
+            u = real_array(u, "u", f"{m} real input values")
+            if u.shape != (m,) or not np.all(np.isfinite(u)):
+                raise ArgumentError("u", f"expected {m} finite input values, got shape "
+                                         f"{u.shape}")
+            out = out + u @ self.input_matrix.T
         return out
 
 

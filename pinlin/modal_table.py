@@ -8,9 +8,9 @@ The printed table shows a real part (and so zeta) as 0 where it is below the eig
 rounding level (:attr:`ModalAnalysis.rounding`, kappa eps |A|_F: how far rounding A's entries
 moves it to first order), so an undamped mode prints zeta 0, not -5e-18; the arrays
 ``eigenvalues`` and ``zeta`` keep the computed values. Which modes oscillate, decay or grow
-(:func:`kind`) is decided by a margin above rounding: an imaginary part counts above its
-rounding level, a real part above 10 n times it (n eigenvalues: the eigensolver's backward
-error is up to ~n eps |A|), or above rigid_tol either way. rigid_tol alone would be too
+(:func:`kind`) is decided by a margin above rounding: a real or imaginary part counts above
+10 n times the eigenvalue's rounding level (n eigenvalues: the eigensolver's backward error is
+up to ~n eps |A|), or above rigid_tol (:func:`resolved`). rigid_tol alone would be too
 coarse where the spectrum is wide: it follows the fastest mode, so beside a 1e7 1/s mode
 (rigid_tol 10) it would call -100 +- 5j real and +5 +- 100j undamped.
 """
@@ -28,22 +28,27 @@ if TYPE_CHECKING:
 def oscillates(analysis: ModalAnalysis, index: int) -> bool:
     """:meth:`ModalAnalysis.oscillates` of ``analysis`` (documented there, in
     :mod:`pinlin.modal`)."""
-    im = abs(analysis.eigenvalues[index].imag)
-    if im > analysis.rigid_tol:
-        return True
     # rigid_tol follows the fastest mode; a slow mode's imaginary part may lie below it and
     # still far above its own rounding level (-100 +- 5j beside -1e7: rigid_tol is 10).
-    return im > 0.0 and im > analysis.rounding[index]
+    return resolved(analysis, index, abs(analysis.eigenvalues[index].imag))
 
 
-def _resolved(analysis: ModalAnalysis, index: int, value: float) -> bool:
-    """Whether a real part ``value`` > 0 [1/s] is more than rounding: above rigid_tol, or
-    above 10 n times the eigenvalue's rounding level (the first-order move of kappa eps |A|_F,
-    times the eigensolver's backward error of up to ~n eps |A|, times 10). Below both, the
-    mode counts as undamped (Re within noise of 0)."""
+def resolved(analysis: ModalAnalysis, index: int, value: float) -> bool:
+    """Whether a part ``value`` >= 0 [1/s] (|Re| or |Im|) of eigenvalue ``index`` is more than
+    rounding: above rigid_tol, or above 10 n times the eigenvalue's rounding level (the
+    first-order move kappa eps |A|_F, times the eigensolver's backward error of up to ~n eps
+    |A|, times 10; n eigenvalues). Below both, the part counts as zero (an undamped mode, a
+    real eigenvalue). The rounding level is at least eps |A|_F (kappa >= 1), so a part below
+    10 n eps |A|_F is settled without it: the condition numbers (a second dgeev) are computed
+    only for parts between that and rigid_tol."""
     if value > analysis.rigid_tol:
         return True
-    return value > 10.0 * len(analysis.eigenvalues) * analysis.rounding[index]
+    if value == 0.0:
+        return False
+    margin = 10.0 * len(analysis.eigenvalues)
+    if value <= margin * analysis.rounding_floor:
+        return False
+    return value > margin * analysis.rounding[index]
 
 
 def modes(analysis: ModalAnalysis) -> list[int]:
@@ -96,10 +101,10 @@ def kind(analysis: ModalAnalysis, index: int) -> str:
         return "constraint"
     if analysis.rigid[index]:
         return "rigid"
-    if lam.real > 0.0 and _resolved(analysis, index, lam.real):
+    if lam.real > 0.0 and resolved(analysis, index, lam.real):
         return "unstable osc." if oscillates(analysis, index) else "unstable"
     if oscillates(analysis, index):
-        return "oscillatory" if lam.real < 0.0 and _resolved(analysis, index, -lam.real) \
+        return "oscillatory" if lam.real < 0.0 and resolved(analysis, index, -lam.real) \
             else "undamped"
     return "real"
 

@@ -242,6 +242,8 @@ def _result(model: LinearModel, t: np.ndarray, x: np.ndarray, y: np.ndarray, U: 
 # --------------------------------------------------------------------------------------------
 def _times(t: object) -> np.ndarray:
     arr = real_array(t, "t", "a 1-D sequence of sample times [s]")
+    if arr.ndim == 0:   # one time, as a number
+        arr = arr.reshape(1)
     if arr.ndim != 1 or arr.size == 0:
         raise ArgumentError("t", "expected a 1-D sequence of sample times [s] (at least one)")
     if not np.all(np.isfinite(arr)):

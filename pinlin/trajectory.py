@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from . import trajectory_loops as loops
+from .arrays import real_array
 from .batch import Layout, Options, batch_path, check, constant_outputs, fill
 from .derivatives import resolve_steps
 from .exceptions import ArgumentError, ModelError, ShapeError
@@ -148,6 +149,14 @@ class TrajectoryModel:
         if not isinstance(self.info, Mapping):
             raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
         object.__setattr__(self, "info", dict(self.info))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickling: the fields as pickled, the arrays read-only again (pickle hands numpy
+        arrays back writeable)."""
+        self.__dict__.update(state)
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
 
     @classmethod
     def trusted(cls, **fields: Any) -> TrajectoryModel:
@@ -288,12 +297,10 @@ class TrajectoryModel:
 
 def _stack(key: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """``value`` as a read-only float64 array of ``shape`` (-1: free), finite."""
-    if np.iscomplexobj(value):
-        raise ArgumentError(key, "expected real numbers, got complex entries")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise ArgumentError(key, f"expected an array of real numbers: {exc}") from None
+    if type(value) is np.ndarray and value.dtype == np.float64:
+        arr = value   # shared when read-only (below), as the model's own arrays are
+    else:
+        arr = real_array(value, key, "an array of real numbers")
     want = tuple(arr.shape[i] if s == -1 and i < arr.ndim else s for i, s in enumerate(shape))
     if arr.shape != want or any(s < 0 for s in want):
         raise ShapeError(f"{key} must have shape {_shape_text(shape)}, got {arr.shape}")

@@ -79,7 +79,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .arrays import non_numbers, read_only
+from .arrays import non_numbers, read_only, real_array
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 from .linearization import _system, linearize
@@ -235,11 +235,8 @@ def _direction(model: LinearModel, direction: object) -> tuple[np.ndarray, str, 
         d[names.index(name)] = 1.0
         label = f"direction {name}"
     else:
-        try:
-            vec = np.array(direction, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise ArgumentError("direction", "expected a coordinate name or a state vector, "
-                                             f"got {type(direction).__name__}") from None
+        vec = real_array(direction, "direction", "a coordinate name or a state vector of "
+                                                 "real numbers").reshape(-1)
         if vec.size not in (n, 2 * n) or not np.all(np.isfinite(vec)) or not np.any(vec):
             raise ArgumentError("direction", f"expected {n} positions or {2 * n} states "
                                              f"({', '.join(names)}), finite and not all zero, "

@@ -393,3 +393,27 @@ def test_info_does_not_turn_damping_off():
     np.testing.assert_allclose(np.sort_complex(modes.eigenvalues),
                                np.sort_complex([-0.5 - 0.75 ** 0.5 * 1j, -0.5 + 0.75 ** 0.5 * 1j]),
                                rtol=1e-14)
+
+
+def test_subnormal_entries():
+    """The scale for dgeev is 2^1029 here: applied by ldexp, not as a float that overflows."""
+    modes = pinlin.modal(_first_order(np.diag([-1e-310, -2e-310])), rigid_tol=0.0)
+    np.testing.assert_array_equal(np.sort(modes.eigenvalues.real), [-2e-310, -1e-310])
+
+
+@pytest.mark.parametrize("name, state", [("talos", "rest"), ("go1", "rest"),
+                                         ("double_pendulum", "moving")])
+def test_kinds_and_stability_need_no_condition_numbers_on_robots(name, state):
+    """Undamped modes on the general path have real parts of rounding size (below 10 n eps
+    |A|_F, the least rounding level times the margin): kind, oscillates and unstable settle
+    them without the condition numbers (a second dgeev, 2x the cost of modal)."""
+    scene = (pinlin.Scene.resolve(name) if name == "double_pendulum" else
+             pinlin.Scene.from_robot(name, operating_point={"allow_non_equilibrium": True}))
+    v = np.full(scene.system.nv, 0.3) if state == "moving" else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        modes = pinlin.modal(pinlin.linearize(scene, v=v))
+    assert modes.method == "general"
+    kinds = [modes.kind(i) for i in modes.modes()]
+    assert modes.is_stable in (True, False) and kinds
+    assert "condition" not in modes.__dict__

@@ -7,10 +7,13 @@ booleans and text; the Python API must too, for a single state and for trajector
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import pinlin
+from pinlin.frequency import frequency_response
 
 
 @pytest.fixture(scope="module")
@@ -187,3 +190,44 @@ def test_model_names_without_control_characters_and_no_discrete_input_derivative
         _model(name="two\tlines\n")
     with pytest.raises(pinlin.ModelError, match="output term F u'"):
         _model(F=np.ones((2, 1))).discretize(0.01)
+
+
+def test_more_values_numpy_would_read_as_numbers():
+    model = _model()
+    with pytest.raises(pinlin.ArgumentError, match="argument 'w': .*got booleans"):
+        frequency_response(model, [True, 2.0])
+    dec = pinlin.modal(model).decoupling
+    with pytest.raises(pinlin.ArgumentError, match="argument 'u': .*got complex"):
+        dec.derivative(np.zeros(2), [1 + 5j])
+    with pytest.raises(pinlin.ArgumentError, match="argument 'direction': .*got booleans"):
+        pinlin.validity("pendulum", [0.01], direction=[True, False])
+    traj = pinlin.linearize_trajectory("pendulum", np.zeros((2, 1)))
+    with pytest.raises(pinlin.ArgumentError, match="argument 'A': .*got booleans"):
+        dataclasses.replace(traj, A=traj.A != 0)
+
+
+def test_one_sample_time_as_a_number_and_names_with_line_separators():
+    assert pinlin.response(_model(), 0.5).t.tolist() == [0.5]
+    for name in ("a\u2028b", "a\x85b"):
+        with pytest.raises(pinlin.ArgumentError, match="control characters"):
+            _model(name=name)
+        with pytest.raises(pinlin.ArgumentError, match="control characters"):
+            _model(output_names=(name, "y2"))
+
+
+def test_discretize_says_f_first_and_products_that_overflow_are_refused():
+    with pytest.raises(pinlin.ModelError, match="output term F u'"):
+        _model(E=np.ones((2, 1)), F=np.ones((2, 1))).discretize(0.01)
+    with pytest.raises(pinlin.ModelError, match="second-order matrices describe other"):
+        pinlin.LinearModel([[0, 1], [1e200, 0]], np.zeros((2, 1)), np.eye(2),
+                           np.zeros((2, 1)), ("q:a", "v:a"), ("u",), ("y1", "y2"),
+                           M=[[1e200]], K=[[5.0]], C_damp=[[0.0]], Bu=[[0.0]])
+
+
+def test_pickled_models_stay_read_only():
+    import pickle
+
+    for obj in (pinlin.linearize("pendulum"),
+                pinlin.linearize_trajectory("pendulum", np.zeros((2, 1)))):
+        again = pickle.loads(pickle.dumps(obj))
+        assert np.array_equal(again.A, obj.A) and not again.A.flags.writeable
