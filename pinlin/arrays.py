@@ -66,6 +66,8 @@ def non_numbers(value: object) -> str | None:
                 return "text"
             elif isinstance(item, complex | np.complexfloating):
                 return "complex entries"
+            elif item is None:   # numpy reads None as NaN
+                return "None (missing values)"
     try:
         arr = np.asarray(value)
     except (TypeError, ValueError, OverflowError):
@@ -80,6 +82,8 @@ def non_numbers(value: object) -> str | None:
             return "booleans (True/False)"
         if isinstance(item, complex | np.complexfloating):
             return "complex entries"
+        if item is None:
+            return "None (missing values)"
     return None
 
 

@@ -288,6 +288,8 @@ def path_argument(argument: str, value: Any) -> Path:
     except TypeError:  # an os.PathLike whose __fspath__ returns bytes or junk
         raise ArgumentError(argument, f"expected a file path (str or os.PathLike), got "
                                       f"{show(value)}") from None
+    if not str(value if isinstance(value, str) else os.fspath(value)):
+        raise ArgumentError(argument, "expected a file path, got an empty one")
     if not clean(str(path)):
         raise ArgumentError(argument, f"expected a file path without control characters, got "
                                       f"{show(str(path))}")

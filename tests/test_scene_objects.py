@@ -134,3 +134,15 @@ def test_mass_inverse_argument_is_checked(ur5):
     Minv = system.mass_inverse(pinlin.operating_point(ur5).q)
     assert np.array_equal(pinlin.operating_point(ur5, mass_inverse=Minv).q,
                           pinlin.operating_point(ur5).q)
+
+
+def test_missing_values_and_empty_paths(ur5):
+    """numpy reads None as NaN (the message said 'contains NaN or inf'); an empty path was
+    read as the current folder ('/tmp/x: file not found')."""
+    with pytest.raises(pinlin.ArgumentError, match="argument 'q': .*got None \\(missing"):
+        pinlin.linearize(ur5, q=np.array([None] * 6))
+    with pytest.raises(pinlin.ArgumentError, match="argument 'v': .*got None \\(missing"):
+        pinlin.linearize(ur5, v=[0.0, None, 0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(pinlin.ArgumentError, match="argument 'path': expected a file path, got "
+                                                   "an empty one"):
+        pinlin.Scene.from_urdf("")
