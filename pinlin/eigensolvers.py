@@ -234,8 +234,11 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
         k2 = np.einsum("ij,ij->i", inv, inv)
         moving = order[n_rigid:]                        # sorted, non-rigid, dgeev's indices
         k2_moving, lam_moving = (k2[moving], magnitudes[moving]) if n_rigid else (k2, magnitudes)
-        with np.errstate(over="ignore"):   # a subnormal |lam|: inf, then LAPACK decides
+        if magnitudes[moving[0]] > 1e-150:   # the smallest non-rigid |lam|: no overflow
             worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
+        else:   # sqrt(k2) / |lam| may overflow: inf, and LAPACK's left vectors decide
+            with np.errstate(over="ignore"):
+                worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
         frobenius = math.sqrt(a2 if a2 is not None and a2 < math.inf else np.vdot(A, A))
         if worst_column * _EPS * frobenius <= EIGENVALUE_RISK / RISK_MARGIN:   # False for NaN
             return
