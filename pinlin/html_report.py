@@ -28,9 +28,11 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import ArgumentError, AssemblyError, ModelFileError
+from .fields import show
 from .figure_view import best_view
 from .files import as_path, check_file_target, write_text_atomic
 from .html_report_assets import SCRIPT, STYLE
+from .linear_model import LinearModel
 from .modal import ModalAnalysis
 from .stick_figure import AXIS_LENGTH, Skeleton, mode_motion, readable_amplitude
 
@@ -276,7 +278,13 @@ def report_html(scene, *, model=None, modes: ModalAnalysis | None = None,
     if isinstance(max_modes, bool) or not isinstance(max_modes, int) or not 1 <= max_modes <= 500:
         raise ArgumentError("max_modes", f"expected 1 to 500 modes to draw, got {max_modes!r}")
     system = _system(scene)
-    model = linearize(system) if model is None else model
+    if model is None:
+        model = linearize(system)
+    elif not isinstance(model, LinearModel) or model.operating_point is None or \
+            np.shape(model.operating_point.q) != (system.nq,):
+        raise ArgumentError("model", f"expected a linear model of scene '{system.scene.name}' "
+                                     f"(an operating point with nq = {system.nq} coordinates), "
+                                     f"got {show(model)}")
     modes = modal(model) if modes is None else modes
     skeleton = Skeleton(system)
     rest = skeleton.figure(np.asarray(model.operating_point.q, dtype=float))

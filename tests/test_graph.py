@@ -543,3 +543,21 @@ def test_random_graphs_against_exact_nodal_analysis(lo, hi):
                     assert ratio <= 1e3, (branches, name, source, s, float(H[i][j]), exact[name])
     assert refused < checked          # the generator makes mostly valid graphs
     assert worst > 0.0                # the comparison ran
+
+
+def test_a_kink_at_the_equilibrium_is_refused():
+    """v for v > 0, 3 v below, at v = 0: the symmetric difference quotients averaged the two
+    slopes into 2 at every step, a model of neither side (A = -2 instead of -1 or -3)."""
+    g = Graph("kink")
+    g.add_branch("Is", "through_source", "g", "1", input=0.0)
+    g.add_branch("C", "A", "1", "g", 1.0)
+    g.add_branch("Dd", "D", "1", "g", relation=lambda v: v if v > 0 else 3 * v)
+    with pytest.raises(GraphError, match="a kink at v = 0.*slope is 1 on the right and 3 on "
+                                         "the left"):
+        g.linearize()
+    # Smooth on both sides of the same point: accepted, the slope exact.
+    g = Graph("smooth")
+    g.add_branch("Is", "through_source", "g", "1", input=0.0)
+    g.add_branch("C", "A", "1", "g", 1.0)
+    g.add_branch("Dd", "D", "1", "g", relation=lambda v: 2.0 * v + v ** 3)
+    assert g.linearize().A[0, 0] == pytest.approx(-2.0, rel=1e-9)

@@ -214,3 +214,14 @@ def test_scene_name_cannot_break_out_of_the_data_script():
     payload = body[:body.index("</script>")]
     assert "<" not in payload
     assert json.loads(payload)["name"] == name
+
+
+def test_a_model_of_another_scene_is_refused():
+    """The double pendulum's model given for the pendulum's report failed on an argument 'q'
+    the caller never passed."""
+    from pinlin.html_report import report_html
+
+    other = pinlin.linearize("double_pendulum")
+    with pytest.raises(pinlin.ArgumentError, match="argument 'model': expected a linear model "
+                                                   "of scene 'pendulum'"):
+        report_html("pendulum", model=other)

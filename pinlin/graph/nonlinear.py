@@ -96,6 +96,26 @@ def derivative(fn, x: float, h: float | None = None) -> float:
     return (fn(x - 2 * h) - 8 * fn(x - h) + 8 * fn(x + h) - fn(x + 2 * h)) / (12 * h)
 
 
+def _refuse_kink(fn, x: float, h: float, slope: float, noise: float, graph, where: str,
+                 at: str) -> None:
+    """GraphError when the one-sided slopes at x differ by a jump: a kink, which the
+    symmetric stencils of :func:`_slope` average into a slope of neither side (v for v > 0,
+    3 v below: 2). For a smooth relation forward minus backward difference is h f'' and
+    shrinks 8 times with the step; at a kink it stays the jump."""
+    f0 = fn(x)
+
+    def gap(step: float) -> float:
+        return (fn(x + step) - f0) / step - (f0 - fn(x - step)) / step
+
+    with np.errstate(all="ignore"):
+        wide, narrow = gap(h), gap(h / 8)
+    if abs(narrow) > 1e-5 * abs(slope) + 8 * noise and abs(narrow) > 0.5 * abs(wide):
+        right = (fn(x + h / 8) - f0) / (h / 8)
+        raise GraphError(graph.source, where, f"a kink at {at}: its slope is {right:.4g} on "
+                                              f"the right and {right - narrow:.4g} on the left; "
+                                              "no linear model there")
+
+
 def _slope(graph, branch: Branch, x: float, context: str = "") -> float:
     """d relation / dx of a branch at x [output unit / input unit].
 
@@ -128,6 +148,7 @@ def _slope(graph, branch: Branch, x: float, context: str = "") -> float:
                                                       "is not finite")
             noise = 20 * np.finfo(float).eps * level / h
             if abs(last - prev) <= 1e-5 * max(abs(last), abs(prev)) + noise:
+                _refuse_kink(fn, x, h, last, noise, graph, where, f"{var} = {x:.6g}{context}")
                 return last
     raise GraphError(graph.source, where, f"no well-defined finite slope at {var} = {x:.6g}"
                                           f"{context}: difference quotients keep changing "
