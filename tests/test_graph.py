@@ -561,3 +561,17 @@ def test_a_kink_at_the_equilibrium_is_refused():
     g.add_branch("C", "A", "1", "g", 1.0)
     g.add_branch("Dd", "D", "1", "g", relation=lambda v: 2.0 * v + v ** 3)
     assert g.linearize().A[0, 0] == pytest.approx(-2.0, rel=1e-9)
+
+
+def test_nonlinear_equilibrium_far_from_zero():
+    """The tank of validation/graphs/tank_orifices.toml fed 0.1 m^3/s: at equilibrium the two
+    orifices (K1 + K2) sqrt(P) pass it, P = (0.1 / 3e-5)^2 = 1.1e7 Pa (110 bar), f_I = K2
+    sqrt(P). The orifices' flows were solved from zero and hybr's first steps never reached
+    them: 'the dissipative elements have no solution' at the exact equilibrium."""
+    g = Graph.load(Path(__file__).resolve().parent.parent / "validation" / "graphs"
+                   / "tank_orifices.toml")
+    P = (0.1 / 3e-5) ** 2
+    m = g.linearize(u0={"Qs": 0.1}, x0=[P, 2e-5 * P ** 0.5])
+    x0 = m.info["operating_point"]["x0"]
+    assert x0["v:C"] == pytest.approx(P, rel=1e-9)
+    assert x0["f:I"] == pytest.approx(2e-5 * P ** 0.5, rel=1e-9)

@@ -208,13 +208,25 @@ class NonlinearGraph:
                 size[i] += abs(y) + abs(pv[i])
             return size if terms else out
 
+        def solved(sol) -> bool:
+            res = residual(sol.x)
+            size = residual(sol.x, terms=True)
+            return bool(np.all(np.isfinite(sol.x)) and np.all(np.isfinite(res))
+                        and (sol.success or np.all(np.abs(res) <= _REL_TOL * size)))
+
         if form.p:
             with np.errstate(all="ignore"):
                 sol = root(residual, np.zeros(len(form.p)), method="hybr")
-                res = residual(sol.x)
-                size = residual(sol.x, terms=True)
-            if not (np.all(np.isfinite(sol.x)) and np.all(np.isfinite(res))
-                    and (sol.success or np.all(np.abs(res) <= _REL_TOL * size))):
+                if not solved(sol):
+                    # Far from zero (a 110 bar tank: hybr's first steps from 0 are too short):
+                    # start where each link's relation puts its primary with the others at 0
+                    # (exact when the links see only states and inputs).
+                    start = -residual(np.zeros(len(form.p)))
+                    start[[self.in_tree[k] for k in form.p]] = 0.0
+                    retry = root(residual, start, method="hybr")
+                    if solved(retry):
+                        sol = retry
+            if not solved(sol):
                 names = [self.branches[k].name for k in form.p]
                 raise GraphError(self.graph.source, f"branches.{names[0]}" if len(names) == 1
                                  else "branches", f"the dissipative elements "
