@@ -575,3 +575,15 @@ def test_nonlinear_equilibrium_far_from_zero():
     x0 = m.info["operating_point"]["x0"]
     assert x0["v:C"] == pytest.approx(P, rel=1e-9)
     assert x0["f:I"] == pytest.approx(2e-5 * P ** 0.5, rel=1e-9)
+
+
+def test_slope_near_the_edge_of_a_relations_domain():
+    """pendulum_torque's spring, theta = arcsin(T / 0.981), held at T = 0.9809 (0.9999 of its
+    range): the first stencil (1e-4) stepped past 0.981 and the point was refused as outside
+    the domain. Reference: d theta / dT = 1 / (s sqrt(1 - (T/s)^2)), s = 0.981."""
+    g = Graph.load(Path(__file__).resolve().parent.parent / "validation" / "graphs"
+                   / "pendulum_torque.toml")
+    m = g.linearize(u0={"Ts": 0.9809})
+    s, T = 0.981, 0.9809
+    assert m.info["incremental_values"]["K"] == pytest.approx(
+        1.0 / (s * math.sqrt(1.0 - (T / s) ** 2)), rel=1e-7)

@@ -136,7 +136,15 @@ def _slope(graph, branch: Branch, x: float, context: str = "") -> float:
         return evaluate(graph, branch, z, context)
 
     h = 1e-4 * max(1.0, abs(x))
-    level = max(abs(fn(x + k * h)) for k in (-2, -1, 0, 1, 2))
+    center = abs(fn(x))   # a failure at x itself is the relation's own: raised
+    for attempt in range(7):   # near the edge of its domain (arcsin at 0.9999 of its scale):
+        try:                   # a stencil 8, 64, ... times narrower
+            level = max(center, *(abs(fn(x + k * h)) for k in (-2, -1, 1, 2)))
+            break
+        except GraphError:
+            if attempt == 6:
+                raise
+            h /= 8
     with np.errstate(all="ignore"):
         estimates = [derivative(fn, x, h)]
         for _ in range(6):
