@@ -76,16 +76,13 @@ class FrequencyResponse:
         return np.unwrap(np.angle(self.H), axis=0)
 
     def gain(self, output: str, input: str) -> np.ndarray:  # noqa: A002 (the signal's name)
-        """H[:, output, input] (len(w)) for the named output and input."""
-        return self.H[:, _pick(output, self.output_names, "output"),
-                      _pick(input, self.input_names, "input")]
-
-
-def _pick(name: str, names: Sequence[str], what: str) -> int:
-    if name in names:
-        return list(names).index(name)
-    raise ArgumentError(what, f"no {what} named {name!r:.60}; expected one of "
-                              f"{', '.join(names)}")
+        """H[:, output, input] (len(w)) for the named output and input (an input may be named
+        without its ``u:`` prefix, as for :func:`frequency_response`)."""
+        for what, name in (("output", output), ("input", input)):
+            if not isinstance(name, str):
+                raise ArgumentError(what, f"expected one {what} name, got {show(name)}")
+        return self.H[:, _select(output, self.output_names, "output")[0],
+                      _select(input, self.input_names, "input")[0]]
 
 
 def _select(chosen: Sequence[str] | str | None, names: tuple[str, ...], what: str) -> list[int]:

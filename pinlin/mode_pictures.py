@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .exceptions import ArgumentError, ModelFileError
+from .fields import show
 from .figure_view import View, best_view
 from .files import (
     GIF_COMMENT,
@@ -88,8 +89,21 @@ def _indices(modes: ModalAnalysis, indices: Sequence[int] | int | None) -> list[
     for item in items:
         if isinstance(item, bool) or not isinstance(item, int | np.integer):
             raise ArgumentError("indices", f"expected eigenvalue indices (int), got "
-                                           f"{item!r:.40}")
-    return [int(k) for k in items]
+                                           f"{show(item)}")
+    out = [int(k) for k in items]
+    n = len(modes.eigenvalues)
+    first = {}   # each index as its mode's first eigenvalue (a conjugate names its pair)
+    keep = modes.modes()
+    for k in out:
+        if not 0 <= k < n:
+            continue   # the picture names the index it cannot draw
+        mode = k if k in keep else k - 1
+        if mode in first:
+            raise ArgumentError("indices", f"indices {first[mode]} and {k} name the same mode "
+                                           f"(mode {keep.index(mode) + 1}): it would be drawn "
+                                           "twice")
+        first[mode] = k
+    return out
 
 
 def _check_dpi(dpi: object) -> float:

@@ -95,3 +95,15 @@ def test_bad_selections_and_overflow_near_the_origin():
     for bad in (0, b"u0", [], ["u0", "u0"]):
         with pytest.raises(pinlin.ArgumentError, match="argument 'inputs'"):
             frequency_response(dint, [1.0], inputs=bad)
+
+
+def test_gain_takes_an_input_without_its_prefix():
+    from pinlin.frequency import frequency_response
+
+    model = pinlin.linearize("double_pendulum")
+    fr = frequency_response(model, [1.0, 2.0])
+    name = model.input_names[0]
+    assert np.array_equal(fr.gain(model.output_names[0], name.removeprefix("u:")),
+                          fr.gain(model.output_names[0], name))
+    with pytest.raises(pinlin.ArgumentError, match="argument 'input': expected one input"):
+        fr.gain(model.output_names[0], [name])

@@ -354,3 +354,15 @@ def test_contact_on_a_name_a_link_and_a_joint_share():
     np.testing.assert_allclose(fig.point("anchor:tip"),
                                _placements(pm, scene.system.q_ref).oMf[link].translation,
                                rtol=0, atol=1e-12)
+
+
+def test_one_mode_named_twice_is_refused(tmp_path):
+    """The CLI refused a mode named twice; the Python API drew it twice (also an index and
+    its conjugate's)."""
+    scene = pinlin.Scene.resolve("double_pendulum")
+    modes = pinlin.modal(pinlin.linearize(scene))
+    first = modes.modes()[0]
+    for indices in ([first, first], [first, first + 1]):
+        with pytest.raises(pinlin.ArgumentError, match="name the same mode"):
+            plot_modes(scene, modes, tmp_path / "m.png", indices)
+    assert not (tmp_path / "m.png").exists()
