@@ -587,3 +587,12 @@ def test_slope_near_the_edge_of_a_relations_domain():
     s, T = 0.981, 0.9809
     assert m.info["incremental_values"]["K"] == pytest.approx(
         1.0 / (s * math.sqrt(1.0 - (T / s) ** 2)), rel=1e-7)
+
+
+def test_zero_slope_is_named_as_such():
+    """car_drag with the propulsion equal to the rolling resistance rests at v = 0, where
+    the drag B v|v| has slope 0: it was called 'a kink or an infinite slope'."""
+    g = Graph.load(Path(__file__).resolve().parent.parent / "validation" / "graphs"
+                   / "car_drag.toml")
+    with pytest.raises(GraphError, match="incremental conductance df/dv = 0 .* not positive"):
+        g.linearize(u0={"Fp": 100, "Fr": 100})
