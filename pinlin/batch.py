@@ -395,8 +395,7 @@ def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, h
         if options.second_order:
             for key in SECOND_ORDER:
                 arrays[key][k] = getattr(model, key)
-        if model.f0 is not None:
-            f0[k] = model.f0
+        f0[k] = 0.0 if model.f0 is None else model.f0   # (reused arrays: every entry written)
         if y is not None:
             y[k] = model.operating_point.y
         if C is not None:
