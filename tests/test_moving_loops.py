@@ -6,6 +6,9 @@ a = pin.constraintDynamics(q, v, tau) (its proximal KKT solver, its own loop Jac
 
 from __future__ import annotations
 
+import math
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -199,3 +202,42 @@ def test_moving_penalty_model_matches_its_equation(name, seed):
     B = np.array([(f(q0, v0, u0 + e) - f(q0, v0, u0 - e)) / 2.0 for e in np.eye(len(u0))]).T
     np.testing.assert_allclose(model.B[n:], B, rtol=0, atol=1e-9 * np.abs(B).max())
     np.testing.assert_allclose(model.f0[n:], f(q0, v0, u0), rtol=0, atol=1e-9 * 1e2)
+
+
+def test_moving_near_a_fold_is_warned():
+    """Four-bar with the rocker independent, 1e-9 rad from its extreme, moving at 0.1 rad/s:
+    configurations that close the loop equally well (to the assembly's tolerance) give state
+    matrices 1.8e-3 apart (velocity terms grow like v^2 over the distance to the fold
+    squared), and the moving model said nothing; at rest the same point is quiet (4e-7).
+    Reference: the loop closed to rounding by a Newton written here (crank and coupler,
+    rocker held), linearized at the same state."""
+    a, b, c, d = 0.2, 0.5, 0.4, 0.45      # the bundled four-bar's crank, coupler, rocker, ground
+    psi0 = math.pi - math.acos((c * c + d * d - (a + b) ** 2) / (2 * c * d))
+    scene = pinlin.Scene.from_dict({
+        "urdf": str(URDF_DIR / "four_bar.urdf"), "effects": {"gravity": [0, 0, -9.81]},
+        "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
+        "inputs": {"actuated": ["crank"]},
+        "operating_point": {"q": {"crank": 0.5, "coupler": -0.1, "rocker": psi0 + 1e-9},
+                            "independent": ["rocker"]}})
+    rest = pinlin.linearize(scene)
+    q0, u0 = rest.operating_point.q, rest.operating_point.u
+    v = np.array(rest.info["R"])[:, 0] * 0.1
+    with pytest.warns(pinlin.AccuracyWarning, match="singular position"):
+        moving = pinlin.linearize(scene, q=q0, v=v, u=u0)
+    change = moving.info["condition"]["operating_point_sensitivity"]
+    model, data = scene.system.model, scene.system.model.createData()
+    f1, f2 = model.getFrameId("coupler_tip"), model.getFrameId("rocker_tip")
+    q = q0.copy()
+    for _ in range(20):   # Newton on crank and coupler, rocker held, rows x and z
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        r = (data.oMf[f1].translation - data.oMf[f2].translation)[[0, 2]]
+        J = (pin.getFrameJacobian(model, data, f1, pin.LOCAL_WORLD_ALIGNED)
+             - pin.getFrameJacobian(model, data, f2, pin.LOCAL_WORLD_ALIGNED))[[0, 2]][:, :2]
+        q[:2] -= np.linalg.lstsq(J, r, rcond=None)[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        closed = pinlin.linearize(scene, q=q, v=v, u=u0)
+    actual = np.abs(closed.A - moving.A).max() / np.abs(moving.A).max()
+    assert actual > 1e-4                 # the point is sensitive: what the warning is about
+    assert change >= 0.5 * actual        # and the estimate says so (4.2e-3 against 1.8e-3)

@@ -244,6 +244,22 @@ def _input_matrix(system, terms) -> np.ndarray:
 SENSITIVITY_CHECK, SENSITIVITY_WARN = 1e3, 1e-6
 
 
+def indistinguishable_move(system, op: OperatingPoint, cp: ConstrainedPoint
+                           ) -> tuple[float, np.ndarray]:
+    """(d [rad or m], w): the distance and the direction (unit, velocity coordinates) along
+    which configurations within d of q0 close the loops as well as q0 does
+    (:func:`assembly_sensitivity`)."""
+    from ..assembly import ASSEMBLY_TOL
+
+    part, G = cp.partition, cp.jacobian
+    dep = part.dependent
+    _, sv, vt = np.linalg.svd(G[:, dep])
+    tol = max(ASSEMBLY_TOL, float(np.abs(system.constraints.residual(op.q)[part.rows]).max()))
+    w = np.zeros(system.nv)
+    w[dep] = vt[-1]
+    return tol / sv[-1], w
+
+
 def assembly_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint,
                          A: np.ndarray) -> tuple[float, float]:
     """Relative change of the reduced A between configurations the assembly cannot tell apart.
@@ -259,15 +275,8 @@ def assembly_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint,
     Returns:
         (max |A(+) - A(-)| / (2 max |A|), d [rad or m]).
     """
-    from ..assembly import ASSEMBLY_TOL
-
-    part, G = cp.partition, cp.jacobian
-    dep = part.dependent
-    _, sv, vt = np.linalg.svd(G[:, dep])
-    tol = max(ASSEMBLY_TOL, float(np.abs(system.constraints.residual(op.q)[part.rows]).max()))
-    d = tol / sv[-1]
-    w = np.zeros(system.nv)
-    w[dep] = vt[-1]
+    part = cp.partition
+    d, w = indistinguishable_move(system, op, cp)
     models = []
     for sign in (-1.0, 1.0):
         q = pin.integrate(system.model, op.q, sign * d * w)
