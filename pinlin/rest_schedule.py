@@ -217,13 +217,16 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
     return np.ascontiguousarray(solution[:, :nu]), np.ones(N, dtype=bool), family, lam
 
 
-def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray) -> dict | None:
-    """What a single call checks near a singular position, at the schedule's point of largest
-    condition of Phi_d when it exceeds SENSITIVITY_CHECK (where a single call starts to check;
-    :func:`pinlin.formulations.constrained.assembly_sensitivity`): the relative change of A
-    between configurations the assembly cannot tell apart, with an AccuracyWarning naming the
-    point above SENSITIVITY_WARN, as the single call warns. Returns {"point", "change"}, or
-    None where no point is that close."""
+def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray,
+                V: np.ndarray | None = None, U: np.ndarray | None = None,
+                stacklevel: int = 4) -> dict | None:
+    """What a single call checks near a singular position, at the trajectory's point of
+    largest condition of Phi_d when it exceeds SENSITIVITY_CHECK (where a single call starts
+    to check; :func:`pinlin.formulations.constrained.assembly_sensitivity`, at a moving state
+    ``V``, ``U`` :func:`pinlin.formulations.motion.moving_sensitivity`): the relative change
+    of A between configurations the assembly cannot tell apart, with an AccuracyWarning
+    naming the point above SENSITIVITY_WARN, as the single call warns. Returns {"point",
+    "change"}, or None where no point is that close."""
     from .formulations.constrained import SENSITIVITY_CHECK, SENSITIVITY_WARN
     from .linearization import linearize
 
@@ -232,17 +235,20 @@ def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray) -> dict | 
         return None
     with warnings.catch_warnings():  # its warnings are re-issued below, naming the point
         warnings.simplefilter("ignore", AccuracyWarning)
-        model = linearize(system, q=Q[k])
+        model = (linearize(system, q=Q[k]) if V is None else
+                 linearize(system, q=Q[k], v=V[k], u=U[k]))
     change = model.info["condition"].get("operating_point_sensitivity")
     if change is None:
         return None
     if change > SENSITIVITY_WARN:
         warnings.warn(AccuracyWarning(
-            f"scene '{system.scene.name}': trajectory point {k}, the schedule's point nearest "
-            f"a singular position of the mechanism (condition {condition[k]:.3g}): "
+            f"scene '{system.scene.name}': trajectory point {k}, the "
+            f"{'schedule' if V is None else 'trajectory'}'s point nearest a singular "
+            f"position of the mechanism (condition {condition[k]:.3g}): "
             f"configurations the assembly cannot tell apart give state matrices {change:.1e} "
-            "(relative) apart; the model there is not reliable (move the schedule away from "
-            "the limit, or name other independent coordinates)", 1.0 / change), stacklevel=4)
+            "(relative) apart; the model there is not reliable (move the trajectory away from "
+            "the limit, or name other independent coordinates)", 1.0 / change),
+            stacklevel=stacklevel)
     return {"point": k, "change": float(change)}
 
 

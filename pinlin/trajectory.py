@@ -31,7 +31,13 @@ from .derivatives import resolve_steps
 from .exceptions import ArgumentError
 from .linearization import _system
 from .resources import check_memory
-from .rest_schedule import holding_inputs, needs_single_calls, rest_info, rest_options
+from .rest_schedule import (
+    holding_inputs,
+    needs_single_calls,
+    rest_info,
+    rest_options,
+    sensitivity,
+)
 from .rest_schedule import single_calls as schedule_by_single_calls
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .system import System
@@ -222,6 +228,12 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
         loops_info = model.info.get("loops") or {}
         model.info.update(rest_info(at_rest, family, system, model.q,
                                     loops_info.get("condition")))
+    elif frozen is not None and inputs["cond"].max(initial=0.0) <= loops.WARN_CONDITION:
+        # a moving mechanism: the point nearest a fold, as a single call (above WARN_CONDITION
+        # the assembly has warned about that point already)
+        checked = sensitivity(system, model.q, inputs["cond"], model.v, model.u, stacklevel=3)
+        if checked is not None:
+            model.info["operating_point_sensitivity"] = checked
     if frozen is None and workers == 1 and executor is None:
         buffers.attach(model, system, layout, arrays)
         if out is not None:

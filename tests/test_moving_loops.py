@@ -241,3 +241,24 @@ def test_moving_near_a_fold_is_warned():
     actual = np.abs(closed.A - moving.A).max() / np.abs(moving.A).max()
     assert actual > 1e-4                 # the point is sensitive: what the warning is about
     assert change >= 0.5 * actual        # and the estimate says so (4.2e-3 against 1.8e-3)
+
+
+def test_a_moving_trajectory_near_a_fold_is_warned():
+    """The same point as above as one point of a trajectory: the stack is warned about at its
+    point nearest the fold, as the single call is."""
+    a, b, c, d = 0.2, 0.5, 0.4, 0.45
+    psi0 = math.pi - math.acos((c * c + d * d - (a + b) ** 2) / (2 * c * d))
+    scene = pinlin.Scene.from_dict({
+        "urdf": str(URDF_DIR / "four_bar.urdf"), "effects": {"gravity": [0, 0, -9.81]},
+        "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
+        "inputs": {"actuated": ["crank"]},
+        "operating_point": {"q": {"crank": 0.5, "coupler": -0.1, "rocker": psi0 + 1e-9},
+                            "independent": ["rocker"]}})
+    rest = pinlin.linearize(scene)
+    q0, u0 = rest.operating_point.q, rest.operating_point.u
+    v = np.array(rest.info["R"])[:, 0] * 0.1
+    with pytest.warns(pinlin.AccuracyWarning, match="trajectory point 0, the trajectory's point "
+                                                    "nearest a singular position"):
+        traj = pinlin.linearize_trajectory(scene, np.array([q0, q0]), np.array([0.5 * v, v]),
+                                           np.array([u0, u0]))
+    assert traj.info["operating_point_sensitivity"]["point"] == 0   # the first of equals
