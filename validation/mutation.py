@@ -165,7 +165,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    equilibrium = False",
         "a constrained system given at rest with its holding inputs is never an equilibrium"),
     "trajectory_discretize_overflow_kept": (
-        "pinlin/trajectory_model.py", "        refuse_overflow(self.name, dt, method, A_d, B_d, f_d)\n",
+        "pinlin/trajectory_model.py",
+        "        refuse_overflow(self.name, dt, method, A_d, B_d, f_d)\n",
         "", "a trajectory discretized over too long a dt keeps its NaN matrices"),
     "penalty_limit_dropped": (
         "pinlin/options.py", "            if not value <= PENALTY_LIMIT:",
