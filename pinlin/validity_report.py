@@ -39,6 +39,11 @@ class Bound(enum.Enum):
     BELOW_RANGE = "below"      #: beyond tolerance at the smallest amplitude: radius < smallest
 
 
+#: The kinds (:meth:`pinlin.ModalAnalysis.kind`) of a mode whose eigenvalue has an imaginary
+#: part (:meth:`pinlin.ModalAnalysis.oscillates`).
+OSCILLATING = ("oscillatory", "undamped", "unstable osc.")
+
+
 @dataclass(frozen=True, eq=False)
 class Case:
     """The sweep of one mode or direction (read-only arrays).
@@ -178,9 +183,9 @@ def notes(cases: list[Case], drift: float, tol: float, first_order: float) -> li
 def _eigenvalue(c: Case) -> str:
     if c.eigenvalue is None:
         return "-"
-    lam = c.eigenvalue
-    re = "0" if abs(lam.real) <= 1e-9 * abs(lam) else f"{lam.real:+.4g}"
-    return f"{re} +- {abs(lam.imag):.4g}j" if abs(lam.imag) > 1e-9 * abs(lam) else re
+    lam = c.eigenvalue   # as the mode table says: +-j where the mode oscillates, Re 0 undamped
+    re = "0" if c.kind == "undamped" else f"{lam.real:+.4g}"
+    return f"{re} +- {abs(lam.imag):.4g}j" if c.kind in OSCILLATING else re
 
 
 def _percent(e: float) -> str:
