@@ -205,6 +205,8 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
     else:
         arrays = {**(layout.allocate() if reused is None else reused), **inputs}
         try:
+            if reused is not None:
+                buffers.writable(reused)
             for lo in range(0, N, SERIAL_BLOCK):
                 hi = min(N, lo + SERIAL_BLOCK)
                 fill(system, arrays, lo, hi, options)

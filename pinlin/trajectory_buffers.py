@@ -41,7 +41,8 @@ class Arena(NamedTuple):
 
 def reusable(out: object, system: System, layout: Layout, workers: int,
              executor: object) -> dict[str, np.ndarray]:
-    """The result arrays of ``out`` for a call with ``layout`` on ``system``, writeable.
+    """The result arrays of ``out`` for a call with ``layout`` on ``system`` (read-only until
+    :func:`writable`: a call refused before it writes leaves ``out`` as it was).
 
     Raises:
         ArgumentError: ``out`` is not a trajectory model this process's
@@ -75,9 +76,13 @@ def reusable(out: object, system: System, layout: Layout, workers: int,
         raise ArgumentError("out", f"holds {text(arena.layout)}; this call makes "
                                    f"{text(layout)}: give a model of the same number of "
                                    "points and options")
-    for arr in arena.arrays.values():
-        arr.setflags(write=True)   # the arrays own their memory (np.zeros)
     return arena.arrays
+
+
+def writable(arrays: Mapping[str, np.ndarray]) -> None:
+    """Make the reused arrays writeable (they own their memory: np.zeros)."""
+    for arr in arrays.values():
+        arr.setflags(write=True)
 
 
 def attach(model: Any, system: System, layout: Layout, arrays: Mapping[str, np.ndarray]
@@ -106,4 +111,4 @@ def invalidate(out: Any) -> None:
         arr.setflags(write=False)
 
 
-__all__ = ["ARENA", "Arena", "adopt", "attach", "invalidate", "reusable"]
+__all__ = ["ARENA", "Arena", "adopt", "attach", "invalidate", "reusable", "writable"]
