@@ -121,8 +121,8 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
         out: A model an earlier call returned for this scene (open chain, same number of
             points and options, this process): the new models are written into its arrays
             and it is returned, updated, as NumPy's ``out=`` (:mod:`pinlin.trajectory_buffers`:
-            fresh memory costs its zeroing, ~a fifth of Talos's computation). If the call
-            fails after it began writing, ``out``'s matrices are NaN and it cannot be reused.
+            no fresh pages per call). If the call fails after it began writing, ``out``'s
+            matrices are NaN and it cannot be reused.
 
     Raises:
         ShapeError: an array of the wrong shape (the message names the argument).

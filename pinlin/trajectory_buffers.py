@@ -1,11 +1,12 @@
 """Reusing a trajectory model's memory: ``linearize_trajectory(..., out=previous)``.
 
 An iterative optimizer (iLQR, DDP, SQP) re-linearizes the same horizon every iteration. Each
-call's stacks are fresh memory, which the operating system zeroes page by page on first touch:
-for floating-base Talos, 1000 points are 66 MB and their zeroing costs about a fifth of the
-computation (``validation/bench_trajectory.py``). With ``out=`` the new models are written into
-the arrays of a model an earlier call returned, and that same object is returned, updated, as
-NumPy's ``out=`` does.
+call's stacks are fresh memory, which the operating system hands out and zeroes page by page
+on first touch: for floating-base Talos, 1000 points are 66 MB. With ``out=`` the new models
+are written into the arrays of a model an earlier call returned, and that same object is
+returned, updated, as NumPy's ``out=`` does. What that saves depends on the memory system:
+from nothing to a fifth of the call in the runs of ``validation/bench_trajectory.py`` on this
+project's two-core VM.
 
 What makes the arrays safe to reuse: :func:`pinlin.batch.fill` writes every entry that is not
 a structural zero (the upper half of B, A's upper-left block off the Lie-group joints) at every
