@@ -220,26 +220,40 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
 def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray,
                 V: np.ndarray | None = None, U: np.ndarray | None = None,
                 stacklevel: int = 4) -> dict | None:
-    """What a single call checks near a singular position, at the trajectory's point of
-    largest condition of Phi_d when it exceeds SENSITIVITY_CHECK (where a single call starts
-    to check; :func:`pinlin.formulations.constrained.assembly_sensitivity`, at a moving state
-    ``V``, ``U`` :func:`pinlin.formulations.motion.moving_sensitivity`): the relative change
-    of A between configurations the assembly cannot tell apart, with an AccuracyWarning
-    naming the point above SENSITIVITY_WARN, as the single call warns. Returns {"point",
-    "change"}, or None where no point is that close."""
+    """What a single call checks near a singular position (Phi_d's condition above
+    SENSITIVITY_CHECK, where a single call starts to check;
+    :func:`pinlin.formulations.constrained.assembly_sensitivity`, at a moving state ``V``,
+    ``U`` :func:`pinlin.formulations.motion.moving_sensitivity`), at the trajectory's point
+    of largest condition and, with ``V``, at its moving point of largest condition (a moving
+    point near a fold can be 1e4 times as sensitive as one at rest): the relative change of A
+    between configurations the assembly cannot tell apart, with an AccuracyWarning naming
+    the point above SENSITIVITY_WARN, as the single call warns. Returns {"point", "change"}
+    of the larger, or None where no point is that close."""
     from .formulations.constrained import SENSITIVITY_CHECK, SENSITIVITY_WARN
     from .linearization import linearize
 
-    k = int(np.argmax(condition)) if len(condition) else 0
-    if not len(condition) or not condition[k] > SENSITIVITY_CHECK:
+    condition = np.asarray(condition, dtype=float)
+    if not len(condition):
         return None
-    with warnings.catch_warnings():  # its warnings are re-issued below, naming the point
-        warnings.simplefilter("ignore", AccuracyWarning)
-        model = (linearize(system, q=Q[k]) if V is None else
-                 linearize(system, q=Q[k], v=V[k], u=U[k]))
-    change = model.info["condition"].get("operating_point_sensitivity")
-    if change is None:
+    candidates = [int(np.argmax(condition))]
+    if V is not None:   # a moving point can be far more sensitive than a point at rest
+        moving = np.flatnonzero(np.abs(V).max(axis=1) > 0.0)
+        if moving.size:
+            candidates.append(int(moving[np.argmax(condition[moving])]))
+    found: list[tuple[float, int]] = []
+    for k in dict.fromkeys(candidates):
+        if not condition[k] > SENSITIVITY_CHECK:
+            continue
+        with warnings.catch_warnings():  # its warnings are re-issued below, naming the point
+            warnings.simplefilter("ignore", AccuracyWarning)
+            model = (linearize(system, q=Q[k]) if V is None else
+                     linearize(system, q=Q[k], v=V[k], u=U[k]))
+        change = model.info["condition"].get("operating_point_sensitivity")
+        if change is not None:
+            found.append((float(change), k))
+    if not found:
         return None
+    change, k = max(found)
     if change > SENSITIVITY_WARN:
         warnings.warn(AccuracyWarning(
             f"scene '{system.scene.name}': trajectory point {k}, the "
@@ -249,7 +263,7 @@ def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray,
             "(relative) apart; the model there is not reliable (move the trajectory away from "
             "the limit, or name other independent coordinates)", 1.0 / change),
             stacklevel=stacklevel)
-    return {"point": k, "change": float(change)}
+    return {"point": k, "change": change}
 
 
 def _single_call(system: System, k: int, q: np.ndarray, models: list, warned: dict,

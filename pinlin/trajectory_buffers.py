@@ -29,7 +29,7 @@ import numpy as np
 from .batch import Layout
 from .exceptions import ArgumentError
 from .system import System
-from .trajectory_model import ARENA
+from .trajectory_model import ARENA, register_reusable
 
 
 class Arena(NamedTuple):
@@ -69,6 +69,10 @@ def reusable(out: object, system: System, layout: Layout, workers: int,
         raise ArgumentError("out", f"holds the models of another system (scene "
                                    f"'{out.name}'); give a model of scene "
                                    f"'{system.scene.name}' computed from this Scene object")
+    if any(arr.flags.writeable for arr in arena.arrays.values()):
+        raise ArgumentError("out", f"trajectory model '{out.name}' has arrays made writeable "
+                                   "after the call that returned it: they may hold edits in "
+                                   "entries a call does not write; pass a model as returned")
     if arena.layout != layout:
         def text(lay: Layout) -> str:
             return f"{lay.points} points {'with' if lay.second_order else 'without'} " \
@@ -89,9 +93,11 @@ def writable(arrays: Mapping[str, np.ndarray]) -> None:
 def attach(model: Any, system: System, layout: Layout, arrays: Mapping[str, np.ndarray]
            ) -> None:
     """Record in ``model`` that its stacks are ``arrays`` of ``layout`` on ``system``."""
-    model.__dict__[ARENA] = Arena(weakref.ref(system), layout,
-                                  {k: arrays[k] for k in layout.shapes() if k not in
-                                   layout.inputs})
+    owned = {k: arrays[k] for k in layout.shapes() if k not in layout.inputs}
+    for arr in owned.values():   # (the screening's own "bad" too: none is the user's to edit)
+        arr.setflags(write=False)
+    register_reusable(owned.values())
+    model.__dict__[ARENA] = Arena(weakref.ref(system), layout, owned)
 
 
 def adopt(out: Any, model: Any) -> Any:

@@ -9,7 +9,8 @@ arrays by a later call: :mod:`pinlin.trajectory_buffers`.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+import weakref
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,36 @@ from .operating_point import OperatingPoint
 #: Key of a model's record of where its arrays came from (:mod:`pinlin.trajectory_buffers`):
 #: not pickled, not copied into models made from its fields.
 ARENA = "_arena"
+#: Arrays a later ``linearize_trajectory(..., out=model)`` may overwrite, by id (weak: an entry
+#: leaves with its array). What is derived from them (``at(k)``, ``discretize``, a model made
+#: with ``dataclasses.replace``) copies them instead of sharing, so that it does not change.
+_REUSABLE: dict[int, weakref.ref] = {}
+
+
+def register_reusable(arrays: Iterable[np.ndarray]) -> None:
+    """Mark ``arrays`` as memory a later call may overwrite (:data:`_REUSABLE`)."""
+    for arr in arrays:
+        key = id(arr)
+        _REUSABLE[key] = weakref.ref(arr, lambda _, key=key: _REUSABLE.pop(key, None))
+
+
+def reusable_memory(arr: np.ndarray) -> bool:
+    """Whether ``arr`` is, or is a view of, memory a later call may overwrite."""
+    while isinstance(arr, np.ndarray):
+        ref = _REUSABLE.get(id(arr))
+        if ref is not None and ref() is arr:
+            return True
+        arr = arr.base
+    return False
+
+
+def _own(arr: np.ndarray | None) -> np.ndarray | None:
+    """``arr`` itself, or a read-only copy where it lies in reusable memory."""
+    if arr is None or not _REUSABLE or not reusable_memory(arr):
+        return arr
+    out = arr.copy()
+    out.setflags(write=False)
+    return out
 _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 
 
@@ -187,7 +218,7 @@ class TrajectoryModel:
             raise ArgumentError("k", f"expected a point index in [0, {N}) (or from the end, "
                                      f"down to -{N}), got {k}")
         k = int(k) % N
-        q, v, u, a = self.q[k], self.v[k], self.u[k], self.a[k]
+        q, v, u, a = self.q[k], self.v[k], self.u[k], _own(self.a[k])
         rest = bool(self.info.get("at_rest"))  # a schedule of rest points (rest_schedule)
         moving = bool(v.any() or a.any()) or (self.lam is not None and not rest)
         when = f" (t = {self.t[k]:.6g} s)" if self.t is not None else ""
@@ -203,18 +234,18 @@ class TrajectoryModel:
             info["position_correction"] = loop_info["position_correction"][k]
         op = OperatingPoint.trusted(
             q=q, v=v, u=u, a=a, residual=None, equilibrium=not moving, tolerance=0.0,
-            y=None if self.y is None else self.y[k],
+            y=None if self.y is None else _own(self.y[k]),
             lam=None if self.lam is None else self.lam[k],
             lam_names=tuple(self.info.get("lam_names", ())) if self.lam is not None else (),
             notes=(note,))
         if self.t is not None:
             info["t"] = float(self.t[k])
         return LinearModel.assembled(
-            A=self.A[k], B=self.B[k], C=self.C[k], D=self.D[k], state_names=self.state_names,
-            input_names=self.input_names, output_names=self.output_names, E=None, F=None,
-            operating_point=op, G=None, name=self.name, info=info,
-            f0=self.f0[k] if moving else None, dt=self.dt,
-            **{key: None if getattr(self, key) is None else getattr(self, key)[k]
+            A=_own(self.A[k]), B=_own(self.B[k]), C=_own(self.C[k]), D=self.D[k],
+            state_names=self.state_names, input_names=self.input_names,
+            output_names=self.output_names, E=None, F=None, operating_point=op, G=None,
+            name=self.name, info=info, f0=_own(self.f0[k]) if moving else None, dt=self.dt,
+            **{key: None if getattr(self, key) is None else _own(getattr(self, key)[k])
                for key in _SECOND_ORDER})
 
     def discretize(self, dt: float, method: str = "zoh") -> TrajectoryModel:
@@ -250,8 +281,9 @@ class TrajectoryModel:
             warn_if_inaccurate(self.name, dt, self.A)
         for arr in (A_d, B_d, f_d):
             arr.setflags(write=False)
+        kept = {k: _own(v) if isinstance(v, np.ndarray) else v for k, v in self.__dict__.items()}
         return TrajectoryModel.trusted(**{
-            **self.__dict__, "A": A_d, "B": B_d, "f0": f_d, "dt": dt,
+            **kept, "A": A_d, "B": B_d, "f0": f_d, "dt": dt,
             **dict.fromkeys(_SECOND_ORDER),
             "info": {**self.info, "discretization": {"method": method, "dt": dt}}})
 
@@ -294,7 +326,7 @@ def _stack(key: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     if not np.isfinite(arr).all():
         raise ModelError(f"{key} has NaN or inf; a trajectory model with NaN or inf is never "
                          "built")
-    if arr is not value or arr.flags.writeable:  # the model owns its arrays
+    if arr is not value or arr.flags.writeable or reusable_memory(arr):  # owns its arrays
         arr = arr.copy()
         arr.setflags(write=False)
     return arr

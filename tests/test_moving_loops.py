@@ -262,3 +262,30 @@ def test_a_moving_trajectory_near_a_fold_is_warned():
         traj = pinlin.linearize_trajectory(scene, np.array([q0, q0]), np.array([0.5 * v, v]),
                                            np.array([u0, u0]))
     assert traj.info["operating_point_sensitivity"]["point"] == 0   # the first of equals
+
+
+def test_a_trajectory_from_rest_near_a_fold_checks_its_moving_point():
+    """At rest 1e-9 rad from the fold (condition 1.3e5, quiet: 4e-7), then moving 2e-9 rad
+    from it (condition 9e4, 2e-3 as a single call says): the point of largest condition alone
+    missed the moving one."""
+    a, b, c, d = 0.2, 0.5, 0.4, 0.45
+    psi0 = math.pi - math.acos((c * c + d * d - (a + b) ** 2) / (2 * c * d))
+
+    def scene_at(offset):
+        return pinlin.Scene.from_dict({
+            "urdf": str(URDF_DIR / "four_bar.urdf"), "effects": {"gravity": [0, 0, -9.81]},
+            "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
+            "inputs": {"actuated": ["crank"]},
+            "operating_point": {"q": {"crank": 0.5, "coupler": -0.1, "rocker": psi0 + offset},
+                                "independent": ["rocker"]}})
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        p0, p1 = pinlin.linearize(scene_at(1e-9)), pinlin.linearize(scene_at(2e-9))
+    v1 = np.array(p1.info["R"])[:, 0] * 0.1
+    Q = np.array([p0.operating_point.q, p1.operating_point.q])
+    V = np.array([np.zeros_like(v1), v1])
+    U = np.array([p0.operating_point.u, p1.operating_point.u])
+    with pytest.warns(pinlin.AccuracyWarning, match="trajectory point 1"):
+        traj = pinlin.linearize_trajectory(scene_at(1e-9), Q, V, U)
+    assert traj.info["operating_point_sensitivity"]["point"] == 1

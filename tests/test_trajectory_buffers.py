@@ -121,3 +121,35 @@ def test_a_schedule_by_single_calls_refuses_out():
     first = pinlin.linearize_trajectory(scene, q)
     with pytest.raises(pinlin.ArgumentError, match="argument 'out': .*scheduled by single"):
         pinlin.linearize_trajectory(scene, q, out=first)
+
+
+def test_what_was_derived_before_does_not_change():
+    """at(k), discretize() and dataclasses.replace() of a model later passed as out= shared
+    its memory: they took the next call's matrices beside their own states. They copy now;
+    out's own arrays (views included) change, as NumPy's out= does."""
+    import dataclasses
+
+    scene = pinlin.Scene.resolve("double_pendulum")      # frame outputs: C and y per point
+    model = pinlin.linearize_trajectory(scene, *_states(scene, 4, 9))
+    point, disc = model.at(1), model.discretize(0.01)
+    copy = dataclasses.replace(model, name="kept")
+    before = {"point": point.A.copy(), "C": disc.C.copy(), "y": disc.y.copy(),
+              "a": disc.a.copy(), "copy": copy.A.copy(), "pC": point.C.copy()}
+    pinlin.linearize_trajectory(scene, *_states(scene, 4, 10), out=model)
+    np.testing.assert_array_equal(point.A, before["point"])
+    np.testing.assert_array_equal(point.C, before["pC"])
+    for key in ("C", "y", "a"):
+        np.testing.assert_array_equal(getattr(disc, key), before[key], err_msg=key)
+    np.testing.assert_array_equal(copy.A, before["copy"])
+    assert not np.array_equal(model.A, before["copy"])     # out itself holds the new models
+
+
+def test_arrays_made_writeable_are_not_reused():
+    """Entries a call does not write (structural zeros) kept a user's edits."""
+    scene = pinlin.Scene.from_robot("ur5")
+    states = _states(scene, 3, 11)
+    model = pinlin.linearize_trajectory(scene, *states)
+    model.A.setflags(write=True)
+    model.A[0, 0, 1] = 123.0
+    with pytest.raises(pinlin.ArgumentError, match="arrays made writeable"):
+        pinlin.linearize_trajectory(scene, *states, out=model)
