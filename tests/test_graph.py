@@ -589,10 +589,18 @@ def test_slope_near_the_edge_of_a_relations_domain():
         1.0 / (s * math.sqrt(1.0 - (T / s) ** 2)), rel=1e-7)
 
 
-def test_zero_slope_is_named_as_such():
+def test_zero_slope_is_named_as_such(tmp_path):
     """car_drag with the propulsion equal to the rolling resistance rests at v = 0, where
     the drag B v|v| has slope 0: it was called 'a kink or an infinite slope'."""
     g = Graph.load(Path(__file__).resolve().parent.parent / "validation" / "graphs"
                    / "car_drag.toml")
     with pytest.raises(GraphError, match="incremental conductance df/dv = 0 .* not positive"):
         g.linearize(u0={"Fp": 100, "Fr": 100})
+    # a drag law B |v|^e sgn v with e = 1.3 (fluid and aerodynamic laws: 1.5 .. 2) too
+    source = (Path(__file__).resolve().parent.parent / "validation" / "graphs"
+              / "car_drag.toml").read_text()
+    assert "exponent = 2.0" in source
+    path = tmp_path / "car_drag.toml"
+    path.write_text(source.replace("exponent = 2.0", "exponent = 1.3"))
+    with pytest.raises(GraphError, match="incremental conductance df/dv = 0"):
+        Graph.load(path).linearize(u0={"Fp": 100, "Fr": 100})
