@@ -74,6 +74,12 @@ def _dask_executor(address: str):
         raise ArgumentError("--dask", f"cannot reach a Dask scheduler at {address!r}: "
                                       f"{' '.join(str(exc).split()) or type(exc).__name__}") \
             from None
+    except (MemoryError, Exception) as exc:  # noqa: BLE001  a service that speaks no Dask (an
+        # ssh banner read as a frame length asked numpy for 2.8 EiB): what it is, in one line
+        raise ArgumentError("--dask", f"no Dask scheduler answers at {address!r} (the service "
+                                      f"there sent what Dask cannot read: "
+                                      f"{type(exc).__name__}); give the scheduler's address, "
+                                      "e.g. tcp://host:8786") from None
     return client, client.get_executor()
 
 

@@ -340,7 +340,7 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
     m = ms.model
     for i in range(1, m.nbody):  # placements and inertias as compiled, at full precision
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, i)
-        head = f'<body name="{name}"'
+        head = f'<body name="{_xml_attribute(name)}"'
         xml = _exact_attributes(xml, head, {"pos": m.body_pos[i], "quat": m.body_quat[i]})
         start = xml.find(head)
         inertial = xml.find("<inertial", start)
@@ -357,15 +357,15 @@ def to_xml(ms: MujocoScene, system, q: np.ndarray | None = None, v: np.ndarray |
             continue
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, i)
         dof, adr = m.jnt_dofadr[i], m.jnt_qposadr[i]
-        xml = _exact_attributes(xml, f'<joint name="{name}"', {
+        xml = _exact_attributes(xml, f'<joint name="{_xml_attribute(name)}"', {
             "stiffness": m.jnt_stiffness[i:i + 1], "springref": m.qpos_spring[adr:adr + 1],
             "damping": m.dof_damping[dof:dof + 1], "armature": m.dof_armature[dof:dof + 1]})
     for i in range(m.nsite):     # the sites pinlin placed: loop and contact anchors
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i)
-        xml = _exact_attributes(xml, f'<site name="{name}"',
+        xml = _exact_attributes(xml, f'<site name="{_xml_attribute(name)}"',
                                 {"pos": m.site_pos[i], "quat": m.site_quat[i]})
     if q is not None:
-        xml = _exact_attributes(xml, f'<key name="{key}"', {
+        xml = _exact_attributes(xml, f'<key name="{_xml_attribute(key)}"', {
             "qpos": qpos, "qvel": qvel, **({} if ctrl is None else {"ctrl": ctrl})})
     name = system.scene.name.replace("--", "- -")    # "--" may not appear in a comment
     return f"{MJCF_MARKER} from scene '{name}' -->\n" + xml
@@ -397,6 +397,15 @@ def _next(xml: str, text: str, start: int) -> int:
     """Index of ``text`` in ``xml`` from ``start``, or len(xml)."""
     found = xml.find(text, start)
     return len(xml) if found < 0 else found
+
+
+def _xml_attribute(name: str) -> str:
+    """``name`` as MuJoCo's writer (tinyxml2) escapes it in an attribute value, so that the
+    element it names is found in the written file (a joint 'j&1' is written 'j&amp;1')."""
+    for char, entity in (("&", "&amp;"), ("<", "&lt;"), (">", "&gt;"), ('"', "&quot;"),
+                         ("'", "&apos;")):
+        name = name.replace(char, entity)
+    return name
 
 
 def _exact_attributes(xml: str, head: str, values: dict[str, np.ndarray], at: int = 0) -> str:
@@ -470,8 +479,11 @@ def set_state(ms: MujocoScene, system, q: np.ndarray, v: np.ndarray, tau: np.nda
         if m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_FREE:
             d.qpos[adr:adr + 3] = qj[:3]
             d.qpos[adr + 3:adr + 7] = [qj[6], qj[3], qj[4], qj[5]]
-        elif j.continuous:
-            d.qpos[adr] = np.arctan2(qj[1], qj[0])
+        elif j.continuous:   # on the branch of the spring's reference (MuJoCo's hinge spring
+            # -k (qpos - springref) does not wrap; pinlin's acts on the wrapped difference)
+            ref = float(m.qpos_spring[adr])
+            angle = np.arctan2(qj[1], qj[0]) - ref
+            d.qpos[adr] = ref + np.arctan2(np.sin(angle), np.cos(angle))
         else:
             d.qpos[adr] = qj[0]
     rot = _base_rotation(system, q) if ms.free else None

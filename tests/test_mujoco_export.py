@@ -320,3 +320,53 @@ def test_exported_inputs_hold_the_operating_point_in_mujoco(name, tmp_path, caps
             mujoco.mj_step(m, d)
         drifts.append(float(np.abs(d.qpos - q0).max()))
     assert drifts[0] < 1e-4 and drifts[1] > 1e-2, drifts
+
+
+_TWO_LINKS = """<robot name="{name}">
+  <link name="base"/>
+  <link name="{l1}"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+    <inertia ixx="0.02" ixy="0.001" ixz="0" iyy="0.025" iyz="0" izz="0.03"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+  <joint name="{j1}" type="revolute"><parent link="base"/><child link="{l1}"/>
+    <axis xyz="0 1 0"/><limit lower="-0.1" upper="0.1" effort="1" velocity="10"/></joint>
+  <joint name="j2" type="continuous"><parent link="{l1}"/><child link="l2"/>
+    <origin xyz="0 0 -1"/><axis xyz="0 1 0"/></joint>
+</robot>
+"""
+
+
+def test_spring_on_a_continuous_joint_holds_at_the_keyframe(tmp_path):
+    """A spring of rest 3.0 rad on a continuous joint held at 3.5 rad: the keyframe wrote the
+    angle as atan2 (-2.78) beside springref 3.0, so MuJoCo's unwrapped hinge spring pushed
+    with +28.9 N*m instead of -2.5 and the robot fell from its key. Now the key's angle lies
+    on the spring's branch: the spring force is pinlin's and the key is an equilibrium."""
+    (tmp_path / "dyn.urdf").write_text(_TWO_LINKS.format(name="dyn", l1="l1", j1="j1"))
+    (tmp_path / "s.toml").write_text(
+        'name = "spring_wrap"\nurdf = "dyn.urdf"\n[effects]\n'
+        'springs = { j2 = { stiffness = 5.0, rest = 3.0 } }\n[operating_point]\n'
+        'q = { j1 = 0.0, j2 = 3.5 }\n[inputs]\nactuated = ["j2"]\n')
+    out = tmp_path / "s.xml"
+    assert main(["export-mjcf", str(tmp_path / "s.toml"), "-o", str(out)]) == 0
+    m = mujoco.MjModel.from_xml_path(str(out))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    mujoco.mj_forward(m, d)
+    assert d.qfrc_spring[1] == pytest.approx(-5.0 * 0.5, rel=1e-12)
+    assert np.abs(d.qacc).max() < 1e-9
+
+
+def test_names_xml_escapes_keep_full_precision(tmp_path):
+    """A joint 'j&1' is written 'j&amp;1': the full-precision pass looked for 'j&1' and left
+    MuJoCo's 6 digits (stiffness 10.1235 for 10.123456789)."""
+    (tmp_path / "amp.urdf").write_text(_TWO_LINKS.format(name="amp", l1="l&amp;1",
+                                                          j1="j&amp;1"))
+    (tmp_path / "a.toml").write_text(
+        'name = "amp"\nurdf = "amp.urdf"\n[effects]\n'
+        'springs = { "j&1" = { stiffness = 10.123456789, rest = 0.0123456789 } }\n')
+    out = tmp_path / "a.xml"
+    assert main(["export-mjcf", str(tmp_path / "a.toml"), "-o", str(out)]) == 0
+    text = out.read_text()
+    assert 'name="j&amp;1"' in text and 'stiffness="10.123456789"' in text
+    m = mujoco.MjModel.from_xml_path(str(out))
+    assert m.jnt_stiffness[0] == 10.123456789

@@ -654,3 +654,37 @@ def test_an_executor_already_shut_down_is_an_argument_error():
     with pytest.raises(pinlin.ArgumentError, match="argument 'executor': cannot take work"):
         pinlin.linearize_trajectory("pendulum", np.zeros((3, 1)), np.zeros((3, 1)),
                                     np.zeros((3, 1)), executor=pool)
+
+
+def test_dask_address_of_another_service(tmp_path, capfd):
+    """An address where something else answers (an ssh banner, read by Dask as a frame length
+    of 2.8 EiB) ended in numpy's MemoryError traceback."""
+    import socket
+    import threading
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(5)
+    port = server.getsockname()[1]
+
+    def serve():
+        try:
+            while True:
+                conn, _ = server.accept()
+                conn.sendall(b"SSH-2.0-OpenSSH_9.6 banner text here\r\n")
+                conn.close()
+        except OSError:
+            pass
+
+    threading.Thread(target=serve, daemon=True).start()
+    scene = pinlin.Scene.from_robot("ur5")
+    q, v, u = states(scene, 3, seed=18)
+    np.savez(tmp_path / "traj.npz", q=q, v=v, u=u)
+    try:
+        code = main(["trajectory", "ur5", str(tmp_path / "traj.npz"), "--dask",
+                     f"tcp://127.0.0.1:{port}", "--out", str(tmp_path / "m.npz")])
+    finally:
+        server.close()
+    err = capfd.readouterr().err
+    assert code == 2 and "argument '--dask'" in err and "Traceback" not in err, err
+    assert not (tmp_path / "m.npz").exists()
