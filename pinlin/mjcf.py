@@ -479,11 +479,14 @@ def set_state(ms: MujocoScene, system, q: np.ndarray, v: np.ndarray, tau: np.nda
         if m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_FREE:
             d.qpos[adr:adr + 3] = qj[:3]
             d.qpos[adr + 3:adr + 7] = [qj[6], qj[3], qj[4], qj[5]]
-        elif j.continuous:   # on the branch of the spring's reference (MuJoCo's hinge spring
-            # -k (qpos - springref) does not wrap; pinlin's acts on the wrapped difference)
-            ref = float(m.qpos_spring[adr])
-            angle = np.arctan2(qj[1], qj[0]) - ref
-            d.qpos[adr] = ref + np.arctan2(np.sin(angle), np.cos(angle))
+        elif j.continuous:
+            d.qpos[adr] = np.arctan2(qj[1], qj[0])
+            if m.jnt_stiffness[jid]:   # on the branch of the spring's reference (MuJoCo's hinge
+                # spring -k (qpos - springref) does not wrap; pinlin's acts on the wrapped
+                # difference)
+                ref = float(m.qpos_spring[adr])
+                gap = d.qpos[adr] - ref
+                d.qpos[adr] = ref + np.arctan2(np.sin(gap), np.cos(gap))
         else:
             d.qpos[adr] = qj[0]
     rot = _base_rotation(system, q) if ms.free else None
