@@ -105,3 +105,12 @@ def real_array(value: object, name: str, expected: str) -> np.ndarray:
     except (TypeError, ValueError, OverflowError):
         raise ArgumentError(name, f"expected {expected}, got {type(value).__name__} "
                                   f"{value!r:.60}") from None
+
+
+def restore_read_only(obj: object, state: dict) -> None:
+    """``obj.__dict__`` from a pickled ``state``, its arrays read-only again (pickle hands
+    numpy arrays back writeable): the ``__setstate__`` of the frozen models."""
+    obj.__dict__.update(state)
+    for value in state.values():
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)

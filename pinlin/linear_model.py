@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import non_numbers, real_array, sum_of_squares
+from .arrays import non_numbers, real_array, restore_read_only, sum_of_squares
 from .exceptions import ArgumentError, ModelError, PinlinError, ShapeError
 from .fields import clean, show
 from .files import as_path, check_file_target, write_bytes_atomic
@@ -340,10 +340,7 @@ class LinearModel:
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Unpickling: the fields as pickled, the arrays read-only again (pickle hands numpy
         arrays back writeable)."""
-        self.__dict__.update(state)
-        for value in state.values():
-            if isinstance(value, np.ndarray):
-                value.setflags(write=False)
+        restore_read_only(self, state)
 
     @classmethod
     def assembled(cls, **fields: Any) -> LinearModel:

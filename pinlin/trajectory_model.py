@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import real_array
+from .arrays import real_array, restore_read_only
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .linear_model import LinearModel
 from .operating_point import OperatingPoint
@@ -170,10 +170,7 @@ class TrajectoryModel:
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Unpickling: the fields as pickled, the arrays read-only again (pickle hands numpy
         arrays back writeable)."""
-        self.__dict__.update(state)
-        for value in state.values():
-            if isinstance(value, np.ndarray):
-                value.setflags(write=False)
+        restore_read_only(self, state)
 
     @classmethod
     def trusted(cls, **fields: Any) -> TrajectoryModel:

@@ -204,6 +204,20 @@ def test_moving_penalty_model_matches_its_equation(name, seed):
     np.testing.assert_allclose(model.f0[n:], f(q0, v0, u0), rtol=0, atol=1e-9 * 1e2)
 
 
+def _four_bar_near_fold(offset: float) -> pinlin.Scene:
+    """The bundled four-bar with the rocker independent, ``offset`` [rad] from the rocker's
+    extreme (crank and coupler in line; link lengths of four_bar.urdf: crank 0.2, coupler
+    0.5, rocker 0.4, ground 0.45)."""
+    a, b, c, d = 0.2, 0.5, 0.4, 0.45
+    psi0 = math.pi - math.acos((c * c + d * d - (a + b) ** 2) / (2 * c * d))
+    return pinlin.Scene.from_dict({
+        "urdf": str(URDF_DIR / "four_bar.urdf"), "effects": {"gravity": [0, 0, -9.81]},
+        "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
+        "inputs": {"actuated": ["crank"]},
+        "operating_point": {"q": {"crank": 0.5, "coupler": -0.1, "rocker": psi0 + offset},
+                            "independent": ["rocker"]}})
+
+
 def test_moving_near_a_fold_is_warned():
     """Four-bar with the rocker independent, 1e-9 rad from its extreme, moving at 0.1 rad/s:
     configurations that close the loop equally well (to the assembly's tolerance) give state
@@ -211,14 +225,7 @@ def test_moving_near_a_fold_is_warned():
     squared), and the moving model said nothing; at rest the same point is quiet (4e-7).
     Reference: the loop closed to rounding by a Newton written here (crank and coupler,
     rocker held), linearized at the same state."""
-    a, b, c, d = 0.2, 0.5, 0.4, 0.45      # the bundled four-bar's crank, coupler, rocker, ground
-    psi0 = math.pi - math.acos((c * c + d * d - (a + b) ** 2) / (2 * c * d))
-    scene = pinlin.Scene.from_dict({
-        "urdf": str(URDF_DIR / "four_bar.urdf"), "effects": {"gravity": [0, 0, -9.81]},
-        "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
-        "inputs": {"actuated": ["crank"]},
-        "operating_point": {"q": {"crank": 0.5, "coupler": -0.1, "rocker": psi0 + 1e-9},
-                            "independent": ["rocker"]}})
+    scene = _four_bar_near_fold(1e-9)
     rest = pinlin.linearize(scene)
     q0, u0 = rest.operating_point.q, rest.operating_point.u
     v = np.array(rest.info["R"])[:, 0] * 0.1
@@ -246,14 +253,7 @@ def test_moving_near_a_fold_is_warned():
 def test_a_moving_trajectory_near_a_fold_is_warned():
     """The same point as above as one point of a trajectory: the stack is warned about at its
     point nearest the fold, as the single call is."""
-    a, b, c, d = 0.2, 0.5, 0.4, 0.45
-    psi0 = math.pi - math.acos((c * c + d * d - (a + b) ** 2) / (2 * c * d))
-    scene = pinlin.Scene.from_dict({
-        "urdf": str(URDF_DIR / "four_bar.urdf"), "effects": {"gravity": [0, 0, -9.81]},
-        "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
-        "inputs": {"actuated": ["crank"]},
-        "operating_point": {"q": {"crank": 0.5, "coupler": -0.1, "rocker": psi0 + 1e-9},
-                            "independent": ["rocker"]}})
+    scene = _four_bar_near_fold(1e-9)
     rest = pinlin.linearize(scene)
     q0, u0 = rest.operating_point.q, rest.operating_point.u
     v = np.array(rest.info["R"])[:, 0] * 0.1
@@ -268,17 +268,7 @@ def test_a_trajectory_from_rest_near_a_fold_checks_its_moving_point():
     """At rest 1e-9 rad from the fold (condition 1.3e5, quiet: 4e-7), then moving 2e-9 rad
     from it (condition 9e4, 2e-3 as a single call says): the point of largest condition alone
     missed the moving one."""
-    a, b, c, d = 0.2, 0.5, 0.4, 0.45
-    psi0 = math.pi - math.acos((c * c + d * d - (a + b) ** 2) / (2 * c * d))
-
-    def scene_at(offset):
-        return pinlin.Scene.from_dict({
-            "urdf": str(URDF_DIR / "four_bar.urdf"), "effects": {"gravity": [0, 0, -9.81]},
-            "loops": [{"name": "closure", "frame1": "coupler_tip", "frame2": "rocker_tip"}],
-            "inputs": {"actuated": ["crank"]},
-            "operating_point": {"q": {"crank": 0.5, "coupler": -0.1, "rocker": psi0 + offset},
-                                "independent": ["rocker"]}})
-
+    scene_at = _four_bar_near_fold
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", pinlin.AccuracyWarning)
         p0, p1 = pinlin.linearize(scene_at(1e-9)), pinlin.linearize(scene_at(2e-9))

@@ -86,8 +86,7 @@ def per_point(scene: pinlin.Scene, n_rounds: int) -> dict[str, float]:
         for k in range(N):
             pin.computeABADerivatives(model, data, q[k], v[k], tau[k])
 
-    def floor():
-        A, B = np.zeros((N, n, n)), np.zeros((N, n, m))
+    def kernel_into(A, B):   # the kernel's outputs copied into the stacks, nothing else
         Aq, Av, Bv = A[:, nv:, :nv], A[:, nv:, nv:], B[:, nv:]
         for k in range(N):
             dq, dv, Minv = pin.computeABADerivatives(model, data, q[k], v[k], tau[k])
@@ -96,6 +95,9 @@ def per_point(scene: pinlin.Scene, n_rounds: int) -> dict[str, float]:
             Bv[k] = Minv[:, cols]
         A[:, np.arange(nv), nv + np.arange(nv)] = 1.0
         return A, B
+
+    def floor():
+        return kernel_into(np.zeros((N, n, n)), np.zeros((N, n, m)))
 
     def batch():
         return pinlin.linearize_trajectory(scene, q, v, u)
@@ -103,15 +105,7 @@ def per_point(scene: pinlin.Scene, n_rounds: int) -> dict[str, float]:
     stacks = np.zeros((N, n, n)), np.zeros((N, n, m))
 
     def floor_reused():   # the floor with stacks written before: no page to hand out
-        A, B = stacks
-        Aq, Av, Bv = A[:, nv:, :nv], A[:, nv:, nv:], B[:, nv:]
-        for k in range(N):
-            dq, dv, Minv = pin.computeABADerivatives(model, data, q[k], v[k], tau[k])
-            Aq[k] = dq
-            Av[k] = dv
-            Bv[k] = Minv[:, cols]
-        A[:, np.arange(nv), nv + np.arange(nv)] = 1.0
-        return A, B
+        return kernel_into(*stacks)
 
     previous = batch()
 

@@ -275,20 +275,31 @@ def assembly_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint,
     Returns:
         (max |A(+) - A(-)| / (2 max |A|), d [rad or m]).
     """
+    def rebuild(moved: OperatingPoint, moved_cp: ConstrainedPoint) -> np.ndarray:
+        terms = second_order_terms(system, moved, "analytic")
+        R = projection(moved_cp.jacobian, moved_cp.partition)
+        C = terms.C if terms.C is not None else np.zeros_like(terms.M)
+        return first_order(R.T @ terms.M @ R, R.T @ C @ R, R.T @ terms.K @ R,
+                           R.T @ system.input_matrix)[0]
+
+    return sensitivity_across(system, op, cp, A, rebuild)
+
+
+def sensitivity_across(system, op: OperatingPoint, cp: ConstrainedPoint, A: np.ndarray,
+                       rebuild) -> tuple[float, float]:
+    """(max |A(+) - A(-)| / (2 max |A|), d [rad or m]) with A(-/+) = ``rebuild(point,
+    constrained point)`` at q0 -/+ d w (:func:`indistinguishable_move`; everything but q and
+    Phi_q held), shared by the models at rest and at a moving state."""
     part = cp.partition
     d, w = indistinguishable_move(system, op, cp)
     models = []
     for sign in (-1.0, 1.0):
         q = pin.integrate(system.model, op.q, sign * d * w)
         moved = OperatingPoint.trusted(**{**op.__dict__, "q": q})
-        terms = second_order_terms(system, moved, "analytic")
-        jac = system.constraints.jacobian(q)[part.rows]
-        R = projection(jac, part)
-        C = terms.C if terms.C is not None else np.zeros_like(terms.M)
-        models.append(first_order(R.T @ terms.M @ R, R.T @ C @ R, R.T @ terms.K @ R,
-                                  R.T @ system.input_matrix)[0])
-    change = float(np.abs(models[1] - models[0]).max()) / (2 * float(np.abs(A).max()))
-    return change, d
+        models.append(rebuild(moved, ConstrainedPoint(
+            part, system.constraints.jacobian(q)[part.rows])))
+    scale = float(np.abs(A).max())
+    return (float(np.abs(models[1] - models[0]).max()) / (2 * scale) if scale else 0.0), d
 
 
 def _warn_sensitive(system, change: float, d: float) -> None:

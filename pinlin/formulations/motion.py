@@ -60,7 +60,7 @@ from .constrained import (
     SENSITIVITY_CHECK,
     _warn_sensitive,
     constrained_effects,
-    indistinguishable_move,
+    sensitivity_across,
 )
 from .independent import output_matrices
 
@@ -230,16 +230,8 @@ def moving_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint, A: np.n
     Returns:
         (max |A(+) - A(-)| / (2 max |A|), d [rad or m]).
     """
-    part = cp.partition
-    d, w = indistinguishable_move(system, op, cp)
-    models = []
-    for sign in (-1.0, 1.0):
-        q = pin.integrate(system.model, op.q, sign * d * w)
-        moved = OperatingPoint.trusted(**{**op.__dict__, "q": q})
-        moved_cp = ConstrainedPoint(part, system.constraints.jacobian(q)[part.rows])
-        models.append(linearize_moving(system, moved, moved_cp, check_sensitivity=False).A)
-    scale = float(np.abs(A).max())
-    return float(np.abs(models[1] - models[0]).max()) / (2 * scale) if scale else 0.0, d
+    return sensitivity_across(system, op, cp, A, lambda moved, moved_cp: linearize_moving(
+        system, moved, moved_cp, check_sensitivity=False).A)
 
 
 def _per_point(system, op: OperatingPoint, part: Partition, G: np.ndarray):
