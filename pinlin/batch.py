@@ -46,9 +46,10 @@ import numpy as np
 import pinocchio as pin
 
 from .chart import PLANAR
+from .conditioning import WARN_CONDITION, trace_condition, warn_if_ill_conditioned
 from .coordinates import FREE_FLYER, SPHERICAL
 from .exceptions import ModelError, PinlinError
-from .mass_bound import diagonal_bound, suspect
+from .mass_bound import diagonal_bound, may_warn, suspect
 from .system import System
 
 #: The per-point second-order stacks of ``second_order=True`` (Bu = S is constant).
@@ -298,7 +299,10 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
                     options.second_order)
         if system.outputs is not None:
             _fill_outputs(system, arrays, start, stop)
-        _screen(system, arrays, start, stop, suspect(bound, minv_diag[:stop - start], limit))
+        diag = minv_diag[:stop - start]
+        refused = suspect(bound, diag, limit)
+        _screen(system, arrays, start, stop, refused,
+                may_warn(bound, diag, WARN_CONDITION) & ~refused)
 
 
 def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
@@ -360,10 +364,11 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
 
 
 def _screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
-            bad: np.ndarray) -> None:
-    """Mark ``bad`` and the non-finite points of lo:hi in ``arrays["bad"]``: one sum per
+            bad: np.ndarray, watch: np.ndarray | None = None) -> None:
+    """Mark ``bad`` and the non-finite points of lo:hi in ``arrays["bad"]`` (1): one sum per
     point and matrix (NaN or inf makes it non-finite; so may finite entries that overflow,
-    which :func:`check` tells apart)."""
+    which :func:`check` tells apart); ``watch`` (0.5): points whose mass matrix may be ill
+    conditioned enough for the single call's AccuracyWarning."""
     nv = system.nv
     for key in ("f0", "A", "B", "C", *SECOND_ORDER):
         stack = arrays.get(key)
@@ -372,7 +377,7 @@ def _screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
         part = stack[lo:hi, nv:] if key in ("A", "B") else stack[lo:hi]
         rows = part.reshape(hi - lo, -1)  # a view: each point's rows are contiguous
         bad |= ~np.isfinite(np.add.reduce(rows, axis=1))  # no BLAS: no threads woken
-    arrays["bad"][lo:hi] = bad
+    arrays["bad"][lo:hi] = bad if watch is None else np.where(bad, 1.0, 0.5 * watch)
 
 
 def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
@@ -446,7 +451,8 @@ def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
         ModelError: the first bad point's: the mass matrix's own refusal where M(q) is singular
             (:meth:`System.mass_inverse`), else which matrix is not finite.
     """
-    for k in (int(i) for i in np.flatnonzero(arrays["bad"])):
+    passed = []   # suspected, then accepted: their condition is checked below too
+    for k in (int(i) for i in np.flatnonzero(arrays["bad"] == 1.0)):
         try:
             system.mass_inverse(arrays["q"][k])
         except ModelError as exc:
@@ -458,6 +464,18 @@ def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
                              f"model has NaN or inf in {', '.join(where)}; a model with NaN "
                              "or inf is never returned")
         # else: finite entries whose sum overflowed, and a mass matrix System accepts
+        passed.append(k)
+    watch = [*np.flatnonzero(arrays["bad"] == 0.5), *passed]
+    if watch:   # the single call's warning, at the worst of the points it may concern
+        worst, condition = 0, 0.0
+        for k in (int(i) for i in watch):
+            q = arrays["q"][k]
+            c = trace_condition(system.mass_matrix(q),
+                                system.mass_inverse(q, allow_ill_conditioned=True))
+            if not c <= condition:   # NaN wins
+                worst, condition = k, c
+        warn_if_ill_conditioned(f"mass matrix at trajectory point {worst}", condition,
+                                system.scene.name)
 
 
 __all__ = ["BLOCK", "SECOND_ORDER", "Layout", "Options", "batch_path", "check",

@@ -171,4 +171,14 @@ def suspect(bound: np.ndarray, minv_diag: np.ndarray, limit: float) -> np.ndarra
     return ~((estimate < limit) & (minv_diag.min(axis=1, initial=np.inf) > 0.0))
 
 
-__all__ = ["ROUNDING", "diagonal_bound", "suspect"]
+def may_warn(bound: np.ndarray, minv_diag: np.ndarray, threshold: float) -> np.ndarray:
+    """Points where the single call's condition estimate tr(M) tr(M^-1) / n may exceed
+    ``threshold`` (its AccuracyWarning): sum_i b_i sum_i (M^-1)_ii / n bounds it from above
+    (b_i >= M_ii), so no point that warns is missed; :func:`pinlin.batch.check` computes the
+    estimate itself where this says it may."""
+    n = minv_diag.shape[1]
+    with np.errstate(invalid="ignore", over="ignore"):
+        return bound.sum() * minv_diag.sum(axis=1) / max(n, 1) > threshold
+
+
+__all__ = ["ROUNDING", "diagonal_bound", "may_warn", "suspect"]

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
@@ -688,3 +689,39 @@ def test_dask_address_of_another_service(tmp_path, capfd):
     err = capfd.readouterr().err
     assert code == 2 and "argument '--dask'" in err and "Traceback" not in err, err
     assert not (tmp_path / "m.npz").exists()
+
+
+_SINGULAR = """<robot name="sing">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0 0 0"/><mass value="0"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0 0 1"/><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_an_ill_conditioned_point_warns_as_the_single_call(tmp_path, workers):
+    """A point mass on two joints: M is singular where q2 = 0. At q2 = 1e-7 and 1e-9 the
+    single call warns (condition 5e13, 5e17); the trajectory returned the same models
+    without a word."""
+    (tmp_path / "sing.urdf").write_text(_SINGULAR)
+    scene = pinlin.Scene.from_urdf(tmp_path / "sing.urdf")
+    for q2 in (1e-7, 1e-9):
+        q = np.array([[0.0, 0.5], [0.0, q2]])
+        with pytest.warns(pinlin.AccuracyWarning, match="the mass matrix has condition"):
+            single = pinlin.linearize(scene, q=q[1], v=np.zeros(2), u=np.zeros(2))
+        with pytest.warns(pinlin.AccuracyWarning, match="the mass matrix at trajectory point 1 "
+                                                        "has condition"):
+            traj = pinlin.linearize_trajectory(scene, q, np.zeros((2, 2)), np.zeros((2, 2)),
+                                               workers=workers)
+        np.testing.assert_array_equal(traj.A[1], single.A)
+    with warnings.catch_warnings():   # a well-conditioned point: no warning
+        warnings.simplefilter("error", pinlin.AccuracyWarning)
+        pinlin.linearize_trajectory(scene, np.array([[0.0, 0.5]]), np.zeros((1, 2)),
+                                    np.zeros((1, 2)))
