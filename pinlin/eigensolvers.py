@@ -13,6 +13,7 @@ its accuracy warning.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import warnings
@@ -121,8 +122,7 @@ def geev(A: np.ndarray, left: bool, a2: float | None = None) -> tuple[np.ndarray
     """wr, wi, vl, vr of LAPACK dgeev (vl empty unless ``left``), as scipy.linalg.eig calls it;
     a matrix with entries beyond :data:`GEEV_RANGE` is scaled by a power of 2 first
     (:func:`geev_scale`) and its eigenvalues scaled back, both exact (the eigenvectors do not
-    change). ``a2``: |A|_F^2 if
-    known (:func:`geev_scale`)."""
+    change). ``a2``: |A|_F^2 if known (:func:`geev_scale`)."""
     k = geev_scale(A, a2)
     wr, wi, vl, vr, info = lapack.dgeev(np.ldexp(A, k) if k else A, compute_vl=int(left),
                                         lwork=geev_lwork(A.shape[0], left))
@@ -234,11 +234,11 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
         k2 = np.einsum("ij,ij->i", inv, inv)
         moving = order[n_rigid:]                        # sorted, non-rigid, dgeev's indices
         k2_moving, lam_moving = (k2[moving], magnitudes[moving]) if n_rigid else (k2, magnitudes)
-        if magnitudes[moving[0]] > 1e-150:   # the smallest non-rigid |lam|: no overflow
+        # sqrt(k2) / |lam| overflows only below |lam| ~ 1e-150 (inf: LAPACK's left vectors
+        # decide); errstate costs a microsecond, so only there
+        with (np.errstate(over="ignore") if magnitudes[moving[0]] <= 1e-150
+              else contextlib.nullcontext()):
             worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
-        else:   # sqrt(k2) / |lam| may overflow: inf, and LAPACK's left vectors decide
-            with np.errstate(over="ignore"):
-                worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
         frobenius = math.sqrt(a2 if a2 is not None and a2 < math.inf else np.vdot(A, A))
         if worst_column * _EPS * frobenius <= EIGENVALUE_RISK / RISK_MARGIN:   # False for NaN
             return

@@ -40,8 +40,6 @@ _SECOND_ORDER = ("M", "C_damp", "K", "Bu")
 _jsonable = jsonable  # its name here before pinlin.model_files
 
 
-
-
 @functools.lru_cache(maxsize=512)
 def _valid_names(names: tuple) -> bool:
     """Whether a tuple holds distinct non-blank strings without control characters (cached:
@@ -184,20 +182,22 @@ def _check_second_order(model: LinearModel) -> None:
     # A singular M (a model linearized with allow_ill_conditioned) allows any residual: its
     # rows were formed with an inverse that has no correct digit, and it must still load.
     allowed = SECOND_ORDER_MARGIN * nv * eps * cond if math.isfinite(cond) else math.inf
+    exact = 100.0 * nv * eps   # the structural blocks: rounding of the entries alone
     norm = np.linalg.norm
     with np.errstate(all="ignore"):   # overflow is refused below, by name
-        checks = (
-            ("A[:nv, nv:] (the identity)", norm(A[:nv, nv:] - np.eye(nv)), float(nv) ** 0.5),
-            ("B[:nv] (zero)", norm(B[:nv]), norm(B)),
+        checks = (   # (block, residual, scale, relative tolerance)
+            ("A[:nv, nv:] (the identity)", norm(A[:nv, nv:] - np.eye(nv)), float(nv) ** 0.5,
+             exact),
+            ("B[:nv] (zero)", norm(B[:nv]), norm(B), exact),
             ("M A[nv:, :nv] + K", norm(M @ A[nv:, :nv] + model.K),
-             norm(M) * norm(A[nv:, :nv]) + norm(model.K)),
+             norm(M) * norm(A[nv:, :nv]) + norm(model.K), allowed),
             ("M A[nv:, nv:] + C_damp", norm(M @ A[nv:, nv:] + model.C_damp),
-             norm(M) * norm(A[nv:, nv:]) + norm(model.C_damp)),
+             norm(M) * norm(A[nv:, nv:]) + norm(model.C_damp), allowed),
             ("M B[nv:] - Bu", norm(M @ B[nv:] - model.Bu),
-             norm(M) * norm(B[nv:]) + norm(model.Bu)),
+             norm(M) * norm(B[nv:]) + norm(model.Bu), allowed),
         )
-    for what, residual, scale in checks:
-        limit = allowed * scale if what.startswith("M ") else 100.0 * nv * eps * scale
+    for what, residual, scale, tolerance in checks:
+        limit = tolerance * scale
         # A product of finite entries may overflow (inf, or inf - inf = NaN): refused, as the
         # model's dynamics could not be checked (M = 1e200 against A = 1e200).
         if not residual <= limit or (not math.isfinite(residual) and allowed < math.inf):
@@ -291,7 +291,7 @@ class LinearModel:
         if not clean(self.name):
             raise ArgumentError("name", f"expected a name without control characters (tab, "
                                         f"newline: it appears in one-line messages), got "
-                                        f"{self.name!r:.60}")
+                                        f"{show(self.name)}")
         names = {}
         for k in NAME_FIELDS:
             value = getattr(self, k)

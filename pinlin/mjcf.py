@@ -27,6 +27,7 @@ import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from xml.sax.saxutils import escape as xml_escape
 
 import mujoco
 import numpy as np
@@ -402,10 +403,7 @@ def _next(xml: str, text: str, start: int) -> int:
 def _xml_attribute(name: str) -> str:
     """``name`` as MuJoCo's writer (tinyxml2) escapes it in an attribute value, so that the
     element it names is found in the written file (a joint 'j&1' is written 'j&amp;1')."""
-    for char, entity in (("&", "&amp;"), ("<", "&lt;"), (">", "&gt;"), ('"', "&quot;"),
-                         ("'", "&apos;")):
-        name = name.replace(char, entity)
-    return name
+    return xml_escape(name, {'"': "&quot;", "'": "&apos;"})
 
 
 def _exact_attributes(xml: str, head: str, values: dict[str, np.ndarray], at: int = 0) -> str:

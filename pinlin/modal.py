@@ -196,13 +196,8 @@ class ModalAnalysis:
         rigid_tol, or above 10 n times :attr:`rounding`: a slow unstable mode beside much
         faster ones; :meth:`kind` says "unstable" for the same eigenvalues;
         :func:`pinlin.modal_table.resolved`)."""
-        re = self.eigenvalues.real
-        out = re > self.rigid_tol
-        margin = 10.0 * re.size
-        maybe = (re > margin * self.rounding_floor) & ~out
-        if maybe.any():   # the rounding levels (condition numbers) only where they decide
-            out |= maybe & (re > margin * self.rounding)
-        return out
+        return np.array([r > 0.0 and modal_table.resolved(self, i, r)
+                         for i, r in enumerate(self.eigenvalues.real.tolist())], dtype=bool)
 
     @property
     def is_stable(self) -> bool:
