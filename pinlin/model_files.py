@@ -25,6 +25,7 @@ import numpy as np
 from .arrays import non_numbers
 from .exceptions import ModelFileError, PinlinError
 from .files import as_path
+from .mat_check import MatStructureError, check_mat_elements
 from .operating_point import OperatingPoint
 
 #: The matrices a model may have, in the order they are written: first order (A, B, C, D, E,
@@ -307,6 +308,10 @@ def _meta_from_text(path: Path, text: str) -> Mapping[str, Any]:
 def _read_mat(path: Path, raw: bytes) -> tuple[Mapping[str, Any], Mapping[str, Any]]:
     from scipy.io import loadmat
 
+    try:
+        check_mat_elements(raw)   # a bad type code would crash scipy's reader
+    except MatStructureError as exc:
+        raise _bad(path, f"not a MATLAB .mat file pinlin can read: {exc}") from None
     try:
         mat = loadmat(io.BytesIO(raw), squeeze_me=False)
     except Exception as exc:  # noqa: BLE001  scipy raises many kinds for a corrupt file

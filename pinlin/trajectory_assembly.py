@@ -12,10 +12,10 @@ the frozen independent rows), plus the curvature the step before showed where th
 continues it (:func:`curvature`). The plain warm start's error is first order in the step of
 z, the tangent's second order, with the curvature third order: each order saves about one
 Newton iteration per point (on a smooth 200-point sweep one Newton step then closes the
-loops), and the start stays on the branch the trajectory is on. Each iteration is one ``computeJointJacobians`` and a frame
-Jacobian per closure frame (the frame placements come with it), a square solve on the
-independent rows (LAPACK ``gesv``) and ``pin.integrate``; it stops at max |Phi| <=
-ASSEMBLY_TOL over all rows. Where this lean Newton does not converge within
+loops), and the start stays on the branch the trajectory is on. Each iteration is one
+``computeJointJacobians`` and a frame Jacobian per closure frame (the frame placements come
+with it), a square solve on the independent rows (LAPACK ``gesv``) and ``pin.integrate``; it
+stops at max |Phi| <= ASSEMBLY_TOL over all rows. Where this lean Newton does not converge within
 :data:`MAX_ITER` steps (the residual grows, or Phi_d is singular), the point is assembled
 exactly as before: :func:`pinlin.assembly.assemble` (Newton with backtracking) from q_k with
 the previous point's dependent coordinates, which raises the usual AssemblyError.

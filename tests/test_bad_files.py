@@ -853,3 +853,58 @@ def test_a_history_and_a_model_never_replace_each_other(capfd, tmp_path, pendulu
     assert (model_file.read_bytes(), history_file.read_bytes()) == before
     pendulum.save(model_file)      # each kind still replaces its own
     assert main(["simulate", "pendulum", "--t-end", "0.1", "--out", str(history_file)]) == 0
+
+
+def _mat_variants(raw: bytes) -> dict[str, bytes]:
+    """Corruptions of a pinlin .mat file that crashed scipy's compiled reader (segfault):
+    a name's UTF-8 data element retyped 16 -> 24, and a name cell's class flipped from char
+    (4) to sparse (5)."""
+    tag = b"\x10\x00\x00\x00\x07\x00\x00\x00u:elbow"   # miUTF8, 7 bytes, "u:elbow"
+    flags = b"\x06\x00\x00\x00\x08\x00\x00\x00\x04\x00\x00\x00"   # miUINT32, 8: class char
+    assert tag in raw and flags in raw
+    at = raw.index(flags)
+    return {"unknown_type": raw.replace(tag, b"\x18" + tag[1:]),
+            "char_as_sparse": raw[:at + 8] + b"\x05" + raw[at + 9:]}
+
+
+@pytest.mark.parametrize("variant", ["unknown_type", "char_as_sparse"])
+def test_a_mat_file_scipy_would_crash_on_is_refused(variant, tmp_path):
+    """Checked before scipy reads it (pinlin.mat_check): one line naming the file and the
+    byte, for a single model and a trajectory model alike."""
+    scene = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml")
+    good = tmp_path / "m.mat"
+    pinlin.linearize(scene).save(good)
+    bad = tmp_path / "bad.mat"
+    bad.write_bytes(_mat_variants(good.read_bytes())[variant])
+    with pytest.raises(ModelFileError, match=r"bad\.mat.*at byte \d+"):
+        LinearModel.load(bad)
+    q = np.tile(pinlin.linearize(scene).operating_point.q, (3, 1))
+    traj = tmp_path / "t.mat"
+    pinlin.linearize_trajectory(scene, q, np.zeros((3, 2)), np.zeros((3, 2))).save(traj)
+    bad.write_bytes(_mat_variants(traj.read_bytes())[variant])
+    with pytest.raises(ModelFileError, match=r"bad\.mat.*at byte \d+"):
+        pinlin.TrajectoryModel.load(bad)
+
+
+def test_single_bit_flips_of_a_mat_file_never_crash(tmp_path):
+    """400 random single-bit flips of a four-bar's .mat: each is refused with a
+    ModelFileError or loads (MAT files carry no checksum: a flipped digit of a matrix loads as
+    that digit); none may take the process down (scipy's reader did on about 1 in 300)."""
+    scene = pinlin.Scene.load(URDF_DIR / "four_bar.toml")
+    good = tmp_path / "m.mat"
+    pinlin.linearize(scene).save(good)
+    raw = good.read_bytes()
+    rng = np.random.default_rng(7)
+    bad = tmp_path / "bad.mat"
+    outcomes = {"refused": 0, "loaded": 0}
+    for _ in range(400):
+        flipped = bytearray(raw)
+        at = int(rng.integers(128, len(raw)))
+        flipped[at] ^= 1 << int(rng.integers(8))
+        bad.write_bytes(bytes(flipped))
+        try:
+            LinearModel.load(bad)
+            outcomes["loaded"] += 1
+        except ModelFileError:
+            outcomes["refused"] += 1
+    assert outcomes["refused"] > 100 and outcomes["loaded"] > 10, outcomes
