@@ -271,28 +271,31 @@ _NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0,
                 (2, 0): np.lib.format.read_array_header_2_0}
 
 
-def _check_npy_headers(path: Path, raw: bytes) -> None:
-    """Read every array's .npy header before numpy allocates anything: refuse object arrays
-    (pickles) and arrays whose header declares more bytes than the member holds (a small
-    hostile file could otherwise make numpy allocate terabytes)."""
+def _check_npy_headers(path: Path, raw: bytes,
+                       bad: Callable[[Path, str], ModelFileError] = _bad) -> None:
+    """Read every array's .npy header before numpy allocates anything: refuse members that
+    are not arrays (``np.load`` returns a member without the .npy suffix as raw bytes),
+    object arrays (pickles) and arrays whose header declares more bytes than the member holds
+    (a small hostile file could otherwise make numpy allocate terabytes). ``bad`` makes the
+    error (default: "not a pinlin model file: ...")."""
     with zipfile.ZipFile(io.BytesIO(raw)) as zf:
         for member in zf.infolist():
-            if not member.filename.endswith(".npy"):
-                continue
+            if not member.filename.endswith(".npy"):   # np.load would hand back its bytes
+                raise bad(path, f"member {member.filename!r:.60} is not an array (.npy)")
             key = member.filename.removesuffix(".npy")
             with zf.open(member) as fh:
                 version = np.lib.format.read_magic(fh)
                 if version not in _NPY_HEADERS:
-                    raise _bad(path, f"member '{key}': .npy format version {version} is not "
-                                     "one pinlin writes")
+                    raise bad(path, f"member '{key}': .npy format version {version} is not "
+                                    "one pinlin writes")
                 shape, _, dtype = _NPY_HEADERS[version](fh)
             if dtype.hasobject:
-                raise _bad(path, f"member '{key}': holds Python objects (a pickle), which "
-                                 "pinlin never loads")
+                raise bad(path, f"member '{key}': holds Python objects (a pickle), which "
+                                "pinlin never loads")
             needed = math.prod(shape) * dtype.itemsize
             if needed > member.file_size:
-                raise _bad(path, f"member '{key}': its header declares shape {shape} "
-                                 f"({needed} bytes) but it holds {member.file_size} bytes")
+                raise bad(path, f"member '{key}': its header declares shape {shape} "
+                                f"({needed} bytes) but it holds {member.file_size} bytes")
 
 
 def _meta_from_text(path: Path, text: str) -> Mapping[str, Any]:

@@ -106,7 +106,7 @@ def _read_npz_states(path: Path, raw: bytes
     if not zipfile.is_zipfile(io.BytesIO(raw)):
         raise ModelFileError(path, "not an .npz archive (not a zip file)")
     try:
-        _check_npy_headers(path, raw)
+        _check_npy_headers(path, raw, ModelFileError)
         with np.load(io.BytesIO(raw), allow_pickle=False) as z:
             if len(set(z.files)) != len(z.files):   # a dict would keep the last silently
                 twice = next(k for k in z.files if z.files.count(k) > 1)
@@ -161,6 +161,16 @@ def csv_location(path: str | Path, system: System, argument: str, row: int,
     return f"line {line}, columns '{names[columns[0]]}'-'{names[columns[-1]]}'"
 
 
+def _csv_fields(path: Path, number: int, line: str) -> list[str]:
+    """The fields of line ``number`` of a states CSV file. Each line is one record: a quoted
+    field that runs on to the next line (no number does) or one beyond the csv module's field
+    limit is refused, naming the line."""
+    try:
+        return next(csv.reader([line], strict=True))
+    except csv.Error as exc:
+        raise ModelFileError(path, f"line {number}: not a line of CSV values: {exc}") from None
+
+
 def _read_csv_states(path: Path, raw: bytes, system: System
                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None,
                                 np.ndarray | None]:
@@ -174,7 +184,7 @@ def _read_csv_states(path: Path, raw: bytes, system: System
                                    "one line per point")
     q_cols, v_cols, u_cols = trajectory_columns(system)
     known = [*q_cols, *v_cols, *u_cols, "t"]
-    head_line, header = lines[0][0], [c.strip() for c in next(csv.reader([lines[0][1]]))]
+    head_line, header = lines[0][0], [c.strip() for c in _csv_fields(path, *lines[0])]
     seen: set[str] = set()
     for name in header:
         if name in seen:
@@ -197,9 +207,8 @@ def _read_csv_states(path: Path, raw: bytes, system: System
         raise ModelFileError(path, "no data: expected one line of numbers per point after "
                                    "the header")
     values = np.empty((len(lines) - 1, len(header)))
-    for row, (number, fields) in enumerate(zip((i for i, _ in lines[1:]),
-                                               csv.reader(line for _, line in lines[1:]),
-                                               strict=True)):
+    for row, (number, line) in enumerate(lines[1:]):
+        fields = _csv_fields(path, number, line)
         if len(fields) != len(header):
             raise ModelFileError(path, f"line {number}: {len(fields)} values, the header "
                                        f"names {len(header)} columns")

@@ -908,3 +908,48 @@ def test_single_bit_flips_of_a_mat_file_never_crash(tmp_path):
         except ModelFileError:
             outcomes["refused"] += 1
     assert outcomes["refused"] > 100 and outcomes["loaded"] > 10, outcomes
+
+
+def _npy(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, arr)
+    return buf.getvalue()
+
+
+def test_an_archive_member_without_the_npy_suffix_is_refused(capfd, tmp_path):
+    """np.load hands such a member back as raw bytes (an AttributeError traceback before):
+    refused by name in a model file and in a states file alike."""
+    model_file = tmp_path / "m.npz"
+    LinearModel.save(tiny(), model_file)
+    members = dict(np.load(model_file))
+    bare = tmp_path / "bare.npz"
+    with zipfile.ZipFile(bare, "w") as z:
+        for key, arr in members.items():
+            z.writestr(key if key == "meta" else f"{key}.npy", _npy(arr))
+    with pytest.raises(ModelFileError, match=r"bare\.npz.*member 'meta' is not an array"):
+        LinearModel.load(bare)
+    states = tmp_path / "states.npz"
+    with zipfile.ZipFile(states, "w") as z:
+        z.writestr("q", b"xx")
+        for key in ("v", "u"):
+            z.writestr(f"{key}.npy", _npy(np.zeros((3, 2))))
+    code, _, err = cli(capfd, "trajectory", "double_pendulum", states, "--out",
+                       tmp_path / "out.npz")
+    assert_refused(code, err, "states.npz", "member 'q' is not an array")
+    assert not (tmp_path / "out.npz").exists()
+
+
+@pytest.mark.parametrize("row, words", [
+    ("0,0." + "0" * 200_000 + "1,0,0,0,0,0", "field larger than field limit"),
+    ('0,"0\n",0,0,0,0,0', "unexpected end of data"),     # a quoted cell that runs on
+], ids=["huge_cell", "quoted_line_break"])
+def test_states_csv_lines_that_are_not_one_record_are_refused(row, words, capfd, tmp_path):
+    """The csv module's own errors (a traceback before) as one line naming the file and the
+    line."""
+    states = tmp_path / "states.csv"
+    states.write_text("t,q:shoulder,q:elbow,v:shoulder,v:elbow,u:shoulder,u:elbow\n"
+                      f"{row}\n1,0,0,0,0,0,0\n")
+    code, _, err = cli(capfd, "trajectory", "double_pendulum", states, "--out",
+                       tmp_path / "out.npz")
+    assert_refused(code, err, "states.csv", "line 2", words)
+    assert not (tmp_path / "out.npz").exists()
