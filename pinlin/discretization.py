@@ -41,6 +41,7 @@ _EPS = float(np.finfo(float).eps)
 
 
 FLOAT_MAX = float(np.finfo(float).max)
+FLOAT_TINY = float(np.finfo(float).tiny)
 
 
 def check_step(dt: object, method: object) -> float:
@@ -51,8 +52,13 @@ def check_step(dt: object, method: object) -> float:
     """
     if isinstance(dt, bool | np.bool_) or \
             not isinstance(dt, int | float | np.integer | np.floating) \
-            or not 0 < dt <= FLOAT_MAX:   # (an int beyond float64 compares exactly)
+            or not 0 < (float(dt) if isinstance(dt, np.floating) else dt) <= FLOAT_MAX:
+        # (an int beyond float64 compares exactly; a float32 compared as itself would warn)
         raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r:.60}")
+    if float(dt) < FLOAT_TINY:
+        raise ArgumentError("dt", f"{float(dt)!r} s is subnormal (fewer than 53 significant "
+                                  "bits: A dt and B dt would lose their digits); expected a "
+                                  f"sample time >= {FLOAT_TINY:.3g} s")
     if not isinstance(method, str) or method not in METHODS:
         raise ArgumentError("method", f"expected one of {', '.join(map(repr, METHODS))}, got "
                                       f"{method!r}")
@@ -68,7 +74,8 @@ def discretize(model, dt: float, method: str = "zoh"):
             already discrete, or ``"euler"`` on a model whose states are not [q:...; v:...].
         ModelError: the model has input-derivative terms (E): discretize its standard form;
             an output term F u' (held samples have no derivative); or ``dt`` so long
-            that a discrete matrix overflows (:func:`refuse_overflow`).
+            that a discrete matrix overflows (:func:`refuse_overflow`) or that the
+            zero-order hold keeps no correct digit (:func:`warn_if_inaccurate`).
     """
     from .linear_model import LinearModel
 
@@ -87,6 +94,8 @@ def discretize(model, dt: float, method: str = "zoh"):
     dt = float(dt)
     n, m = model.B.shape
     f0 = np.zeros(n) if model.f0 is None else model.f0
+    if method == "zoh":   # before the exponential: refuses a dt without a correct digit
+        warn_if_inaccurate(model.name, dt, model.A)
     with np.errstate(over="ignore", invalid="ignore"):  # refused below, naming dt
         if method == "zoh":
             aug = np.zeros((n + m + 1, n + m + 1))
@@ -98,8 +107,6 @@ def discretize(model, dt: float, method: str = "zoh"):
         else:
             A_d, B_d, f_d = _semi_implicit_euler(model, dt, f0)
     refuse_overflow(model.name, dt, method, A_d, B_d, f_d)
-    if method == "zoh":
-        warn_if_inaccurate(model.name, dt, model.A)
     return LinearModel(
         A=A_d, B=B_d, C=model.C, D=model.D, state_names=model.state_names,
         input_names=model.input_names, output_names=model.output_names, F=model.F,
@@ -125,8 +132,15 @@ def zoh_rounding(A: np.ndarray, dt: float) -> float:
 def warn_if_inaccurate(name: str, dt: float, A: np.ndarray) -> None:
     """AccuracyWarning when the zero-order hold over ``dt`` [s] of ``A`` may lose more than
     WARN_ZOH_ERROR (relative) to rounding: the sample time is ~1e10 times the model's fastest
-    time scale or more, and the discrete matrices keep few (or no) correct digits."""
+    time scale or more, and the discrete matrices keep few correct digits; a ModelError
+    where the estimate reaches 1, no correct digit left (an undamped double pendulum over
+    1e15 s came back with |eig(A_d)| = 0.55 for 1, over 1e30 s with A_d = 0)."""
     error = zoh_rounding(A, dt)
+    if error >= 1.0:
+        raise ModelError(f"model '{name}': a zero-order hold over dt = {dt:g} s spans "
+                         f"||A|| dt = {error / _EPS:.2e} of the model's fastest time scale; "
+                         f"rounding in the matrix exponential reaches {error:.1e} (relative), "
+                         "no correct digit is left; use a shorter dt")
     if error > WARN_ZOH_ERROR:
         warnings.warn(AccuracyWarning(
             f"model '{name}': a zero-order hold over dt = {dt:g} s spans ||A|| dt = "
@@ -153,17 +167,28 @@ def refuse_overflow(name: str, dt: float, method: str, A_d: np.ndarray, B_d: np.
                          "a shorter dt")
 
 
+def check_mechanical(name: str, state_names: tuple[str, ...], B: np.ndarray) -> None:
+    """Refuse the semi-implicit Euler step where it does not apply: states other than
+    [q:...; v:...] (n/2 each), or inputs acting on the positions (``B``: one matrix or a stack
+    with points first).
+
+    Raises:
+        ArgumentError: naming the model.
+    """
+    n = len(state_names)
+    nv = n // 2
+    mechanical = (n % 2 == 0 and all(s.startswith("q:") for s in state_names[:nv])
+                  and all(s.startswith("v:") for s in state_names[nv:]))
+    if not mechanical or np.any(B[..., :nv, :]):
+        raise ArgumentError("method", f"'euler' steps velocities then positions: model "
+                                      f"'{name}' needs states [q:...; v:...] and inputs "
+                                      "acting on the velocities only; use 'zoh'")
+
+
 def _semi_implicit_euler(model, dt: float, f0: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    n = model.A.shape[0]
-    nv = n // 2
-    names = model.state_names
-    mechanical = (n % 2 == 0 and all(s.startswith("q:") for s in names[:nv])
-                  and all(s.startswith("v:") for s in names[nv:]))
-    if not mechanical or np.any(model.B[:nv]):
-        raise ArgumentError("method", f"'euler' steps velocities then positions: model "
-                                      f"'{model.name}' needs states [q:...; v:...] and inputs "
-                                      "acting on the velocities only; use 'zoh'")
+    check_mechanical(model.name, model.state_names, model.B)
+    nv = model.A.shape[0] // 2
     A = model.A
     Aqq, Aqv, Avq, Avv = A[:nv, :nv], A[:nv, nv:], A[nv:, :nv], A[nv:, nv:]
     Bv = model.B[nv:]
@@ -217,4 +242,5 @@ def stacked_euler(A: np.ndarray, B: np.ndarray, f0: np.ndarray, dt: float
     return A_d, B_d, f_d
 
 
-__all__ = ["METHODS", "ZOH_BLOCK", "discretize", "stacked_euler", "stacked_zoh"]
+__all__ = ["METHODS", "ZOH_BLOCK", "check_mechanical", "discretize", "stacked_euler",
+           "stacked_zoh"]

@@ -254,11 +254,14 @@ class TrajectoryModel:
         :meth:`LinearModel.discretize` leaves them out.
 
         Raises:
-            ArgumentError: ``dt`` not a positive finite number [s], an unknown method, or
-                models that are already discrete.
-            ModelError: ``dt`` so long that a discrete matrix overflows (naming the point).
+            ArgumentError: ``dt`` not a positive finite number [s], an unknown method,
+                models that are already discrete, or ``"euler"`` on models whose states are
+                not [q:...; v:...] or whose inputs act on the positions.
+            ModelError: ``dt`` so long that a discrete matrix overflows (naming the point),
+                or that the zero-order hold keeps no correct digit.
         """
         from .discretization import (
+            check_mechanical,
             check_step,
             refuse_overflow,
             stacked_euler,
@@ -270,12 +273,14 @@ class TrajectoryModel:
         if self.dt:
             raise ArgumentError("model", f"trajectory model '{self.name}' is already discrete "
                                          f"(dt = {self.dt:g} s)")
+        if method == "euler":
+            check_mechanical(self.name, self.state_names, self.B)
+        elif method == "zoh":   # before the exponentials: refuses a dt without a correct digit
+            warn_if_inaccurate(self.name, dt, self.A)
         with np.errstate(over="ignore", invalid="ignore"):  # refused below, naming dt
             A_d, B_d, f_d = (stacked_zoh if method == "zoh" else stacked_euler)(
                 self.A, self.B, self.f0, dt)
         refuse_overflow(self.name, dt, method, A_d, B_d, f_d)
-        if method == "zoh":
-            warn_if_inaccurate(self.name, dt, self.A)
         for arr in (A_d, B_d, f_d):
             arr.setflags(write=False)
         kept = {k: _own(v) if isinstance(v, np.ndarray) else v for k, v in self.__dict__.items()}

@@ -192,9 +192,22 @@ def test_discretize_refuses_what_it_cannot_do():
         disc.discretize(0.01)
     with pytest.raises(pinlin.ArgumentError, match="is discrete"):
         pinlin.modal(disc)
-    for method in ("zoh", "euler"):  # a finite dt whose matrices overflow: named, refused
-        with pytest.raises(pinlin.ModelError, match=r"dt = 1e\+300 s .* overflows"):
-            model.discretize(1e300, method)
+    # A finite dt whose matrices overflow: named, refused (an unstable mode, sigma = sqrt(10)
+    # 1/s, over 300 s: exp(949); Euler's powers of dt at 1e300 s).
+    unstable = pinlin.LinearModel(A=[[0.0, 1.0], [10.0, 0.0]], B=[[0.0], [1.0]], C=np.eye(2),
+                                  D=np.zeros((2, 1)), state_names=["q:x", "v:x"],
+                                  input_names=["u:x"], output_names=["y1", "y2"], name="up")
+    with pytest.raises(pinlin.ModelError, match=r"dt = 300 s .* overflows"):
+        unstable.discretize(300.0)
+    with pytest.raises(pinlin.ModelError, match=r"dt = 1e\+300 s .* overflows"):
+        model.discretize(1e300, "euler")
+    # A hold whose rounding estimate eps ||A||_1 dt reaches 1 keeps no correct digit
+    # (the undamped pendulum over 1e15 s: |eig(A_d)| came back 0.55 for 1): refused.
+    with pytest.raises(pinlin.ModelError, match=r"dt = 1e\+15 s .*no correct digit"):
+        model.discretize(1e15)
+    for dt in (5e-324, np.nextafter(np.finfo(float).tiny, 0)):   # subnormal: few bits
+        with pytest.raises(pinlin.ArgumentError, match="argument 'dt'.*subnormal"):
+            model.discretize(dt)
     canon = pinlin.linearize("four_bar", formulation="canonical")
     with pytest.raises(pinlin.ArgumentError, match="use 'zoh'"):
         canon.discretize(0.01, "euler")

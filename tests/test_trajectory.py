@@ -10,6 +10,8 @@ the continuous dynamics in the chart built from Pinocchio's own functions (no pi
 
 from __future__ import annotations
 
+import dataclasses
+
 import sys
 import threading
 import warnings
@@ -360,9 +362,36 @@ def test_discretize_is_the_per_point_discretization(method):
     for bad in (0.0, -1.0, float("nan"), "0.1", True):
         with pytest.raises(pinlin.ArgumentError, match="argument 'dt'"):
             traj.discretize(bad)
-    # A finite dt whose matrices overflow: refused (a saved file would not load back).
-    with pytest.raises(pinlin.ModelError, match=r"dt = 1e\+300 s .* at trajectory point 0"):
+    # A finite dt whose matrices overflow: refused (a saved file would not load back); the
+    # zero-order hold is refused before, as keeping no correct digit (eps ||A||_1 dt >= 1).
+    refusal = (r"dt = 1e\+300 s .* at trajectory point 0" if method == "euler" else
+               r"dt = 1e\+300 s .*no correct digit")
+    with pytest.raises(pinlin.ModelError, match=refusal):
         traj.discretize(1e300, method)
+
+
+def test_euler_refuses_stacks_that_are_not_mechanical():
+    """As LinearModel.discretize does: states other than [q:...; v:...], or inputs on the
+    position rows (before, eye(1) was broadcast over a 2 x 2 block of x' = -x: couplings of
+    1.0 out of nothing, and the position rows of B dropped)."""
+    N = 3
+    plain = pinlin.TrajectoryModel(
+        A=np.tile(-np.eye(3), (N, 1, 1)), B=np.ones((N, 3, 1)), C=np.tile(np.eye(3), (N, 1, 1)),
+        D=np.zeros((N, 3, 1)), f0=np.zeros((N, 3)), q=np.zeros((N, 1)), v=np.zeros((N, 1)),
+        u=np.zeros((N, 1)), a=np.zeros((N, 1)), state_names=("x1", "x2", "x3"),
+        input_names=("u1",), output_names=("y1", "y2", "y3"), name="plain")
+    with pytest.raises(pinlin.ArgumentError, match="model 'plain' needs states"):
+        plain.discretize(0.1, "euler")
+    np.testing.assert_allclose(plain.discretize(0.1).A[0], np.exp(-0.1) * np.eye(3),
+                               rtol=1e-14)
+    scene = pinlin.Scene.resolve("double_pendulum")
+    q, v, u = states(scene, 3, seed=4)
+    traj = pinlin.linearize_trajectory(scene, q, v, u)
+    B = np.array(traj.B)
+    B[:, 0, 0] = 1.0                     # an input on a position row
+    pushed = dataclasses.replace(traj, B=B)
+    with pytest.raises(pinlin.ArgumentError, match="acting on the velocities only"):
+        pushed.discretize(0.01, "euler")
 
 
 # --------------------------------------------------------------------------------------------
