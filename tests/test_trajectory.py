@@ -11,7 +11,6 @@ the continuous dynamics in the chart built from Pinocchio's own functions (no pi
 from __future__ import annotations
 
 import dataclasses
-
 import sys
 import threading
 import warnings
