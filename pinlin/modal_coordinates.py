@@ -48,12 +48,17 @@ from .exceptions import ArgumentError, ShapeError
 if TYPE_CHECKING:
     from .modal import ModalAnalysis
 
-#: Largest condition number of the right eigenvector matrix R (unit columns) accepted for the
-#: diagonal form. r = R^-1 x by an LU solve and x = R r carry a relative error of about
-#: kappa(R) eps each (backward-stable solve and product); at 1e5 that is 2.2e-11, five times
-#: below the 1e-10 at which pinlin promises the modal response equals the matrix exponential's.
-#: A defective pair has kappa ~ 1/sqrt(eps) ~ 7e7 (its two computed eigenvectors differ by
-#: O(sqrt(eps))), far beyond: it always takes the Schur path.
+#: Largest condition number of the right eigenvector matrix R (unit columns), times the
+#: largest eigenvalue condition number |l_i| |r_i| of a 1x1 block, accepted for the diagonal
+#: form. r = R^-1 x by an LU solve and x = R r carry a relative error of about kappa(R) eps
+#: each (backward-stable solve and product), and each computed eigenvalue one of about
+#: |l_i| |r_i| eps |A|, which the exponentials turn into errors of the modes that the
+#: transformation then amplifies by kappa(R): near a nearly repeated pair (a mode damped to
+#: within 6e-10 of critical) both are ~1e5 and the response lost 8 digits (4.7e-8 against
+#: expm) where kappa(R) alone, 9.96e4, passed. At 1e5 the product bounds the error by
+#: 2.2e-11, five times below the 1e-10 at which pinlin promises the modal response equals
+#: the matrix exponential's. A defective pair has kappa ~ 1/sqrt(eps) ~ 7e7 (its two computed
+#: eigenvectors differ by O(sqrt(eps))), far beyond: it always takes the Schur path.
 COND_LIMIT = 1e5
 #: Largest |entry| of a Sylvester solution X accepted to split a Schur block from the rest.
 #: T = Z Y with unitary Z and Y unit block upper triangular: each split adds at most |X| to
@@ -197,25 +202,45 @@ def decouple(A: np.ndarray, B: np.ndarray, C: np.ndarray, f0: np.ndarray | None 
         left, pairs = None, ()
     right = np.asarray(right, dtype=complex)
     kappa = _unit_condition(right)
+    blocks = _blocks(n, pairs)
     if kappa <= COND_LIMIT:
         inverse = left.conj().T if left is not None else sla.solve(right, np.eye(n))
-        blocks = _blocks(n, pairs)
-        kind = "jordan" if pairs else "diagonal"
-        result = _finish(A, B, C, f, right, inverse, blocks, kind, kappa,
-                         f"{why}eigenvector matrix condition {kappa:.2e} <= {COND_LIMIT:.0e}"
-                         + (f"; {len(pairs)} rigid-body Jordan pair(s) kept as 2x2 blocks"
-                            if pairs else ""))
-        if left is None or result.residual <= RESIDUAL_LIMIT:
-            return result
-        return decouple(A, B, C, f0, why=f"closed-form vectors left a residual "
-                                         f"{result.residual:.1e}; ")
+        spread = kappa * _eigenvalue_condition(right, inverse, blocks)
+        if spread <= COND_LIMIT:
+            kind = "jordan" if pairs else "diagonal"
+            result = _finish(A, B, C, f, right, inverse, blocks, kind, kappa,
+                             f"{why}eigenvector matrix condition {kappa:.2e}, times the "
+                             f"largest eigenvalue condition {spread:.2e} <= {COND_LIMIT:.0e}"
+                             + (f"; {len(pairs)} rigid-body Jordan pair(s) kept as 2x2 blocks"
+                                if pairs else ""))
+            if left is None or result.residual <= RESIDUAL_LIMIT:
+                return result
+            return decouple(A, B, C, f0, why=f"closed-form vectors left a residual "
+                                             f"{result.residual:.1e}; ")
+        reason = f"times the largest eigenvalue condition {spread:.2e}"
+    else:
+        reason = f"{kappa:.2e}"
     S, Sinv, blocks = _schur_blocks(A)
     sizes = [e - s for s, e in blocks]
     big = sum(k > 1 for k in sizes)
-    note = (f"{why}eigenvector matrix condition {kappa:.2e} > {COND_LIMIT:.0e} (defective or "
-            f"nearly repeated eigenvalues): block-diagonal Schur form with {len(blocks)} "
-            f"blocks, {big} of them larger than 1x1 (sizes {sorted(set(sizes))})")
+    note = (f"{why}eigenvector matrix condition {kappa:.2e}"
+            + ("" if reason == f"{kappa:.2e}" else f", {reason}")
+            + f" > {COND_LIMIT:.0e} (defective or nearly repeated eigenvalues): block-diagonal "
+            f"Schur form with {len(blocks)} blocks, {big} of them larger than 1x1 (sizes "
+            f"{sorted(set(sizes))})")
     return _finish(A, B, C, f, S, Sinv, tuple(blocks), "schur", _unit_condition(S), note)
+
+
+def _eigenvalue_condition(right: np.ndarray, inverse: np.ndarray,
+                          blocks: Sequence[tuple[int, int]]) -> float:
+    """The largest eigenvalue condition number |l_i| |r_i| (l_i^H: row i of R^-1) over the
+    1x1 blocks (1 without any)."""
+    single = [s for s, e in blocks if e - s == 1]
+    if not single:
+        return 1.0
+    rows = np.linalg.norm(inverse[single], axis=1)
+    cols = np.linalg.norm(right[:, single], axis=0)
+    return float((rows * cols).max())
 
 
 def _unit_condition(T: np.ndarray) -> float:

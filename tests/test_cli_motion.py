@@ -147,15 +147,16 @@ def test_bad_motion_options_give_one_line_and_exit_2(case, capfd):
 
 @pytest.mark.parametrize("case", ["scalar_q", "dt_overflows"])
 def test_bad_trajectory_runs_print_nothing_but_the_error(case, capfd, tmp_path):
-    """A 0-d q member (before, a TypeError in the progress bar) and a --dt whose discrete
-    matrices overflow (before, refused after the summary line) give one error line only."""
+    """A 0-d q member (before, a TypeError in the progress bar) and a --dt the zero-order
+    hold cannot take (its matrices overflowed; now refused before, as keeping no correct
+    digit; before, refused after the summary line) give one error line only."""
     states = tmp_path / "s.npz"
     if case == "scalar_q":
         np.savez(states, q=np.float64(0.1))
         argv, words = [], "member 'q' is a single number"
     else:
         np.savez(states, q=np.zeros((3, 2)), v=np.zeros((3, 2)), u=np.zeros((3, 2)))
-        argv, words = ["--dt", "1e300"], "overflows"
+        argv, words = ["--dt", "1e300"], "no correct digit"
     code, out, err = run(capfd, "trajectory", "double_pendulum", str(states), "--out",
                          str(tmp_path / "o.npz"), "--no-progress", *argv)
     assert code == 2 and err.count("\n") == 1 and words in err, err

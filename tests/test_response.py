@@ -9,6 +9,7 @@ exponential and the hand-derived kinetic energy of a double pendulum's two rods.
 from __future__ import annotations
 
 import functools
+import math
 import tomllib
 import warnings
 
@@ -175,6 +176,34 @@ def test_nearly_defective_pair_shares_a_block():
                            np.exp((lam + d) * t) * x0[1]])
     x = pinlin.response(model, t, x0, modes=modes).x
     assert _rel(x, ref) <= 1e-12   # measured 4e-16
+
+
+@pytest.mark.parametrize("delta", [6e-10, 1e-8, 1e-6])
+def test_a_mode_damped_near_critical_keeps_its_digits(delta):
+    """q'' + 4 (1 + delta) q' + 4 q = 0: a pair 4 sqrt(2 delta) apart (the bundled pendulum
+    with its damping set to critical (1 + 6e-10) did the same). At delta = 6e-10 the
+    eigenvector matrix's condition (9.96e4) passed COND_LIMIT alone, and the diagonal form
+    lost 8 digits (4.7e-8); its eigenvalue condition (~1e5) now sends it to the Schur form.
+    Reference: the closed form of the overdamped oscillator, evaluated with expm1 (no
+    cancellation), q = q0 e^{s1 t} (1 + s1 (1 - e^{(s2 - s1) t}) / (s2 - s1)) with s1 > s2."""
+    k, c = 4.0, 4.0 * (1.0 + delta)
+    A = np.array([[0.0, 1.0], [-k, -c]])
+    model = pinlin.LinearModel(A=A, B=np.zeros((2, 0)), C=np.eye(2), D=np.zeros((2, 0)),
+                               state_names=["q:x", "v:x"], input_names=[],
+                               output_names=["q", "v"], name="critical")
+    root = math.sqrt(c * c / 4.0 - k)
+    s1, s2 = -c / 2.0 + root, -c / 2.0 - root
+    t = np.linspace(0.0, 5.0, 26)
+    q0 = 0.1
+    # q = q0 (s2 e^{s1 t} - s1 e^{s2 t}) / (s2 - s1) = q0 e^{s1 t} (1 - s1 (1 - e^{-d t}) / d)
+    # with d = s1 - s2 > 0 (v0 = 0); v = q' = q0 s1 s2 (e^{s1 t} - e^{s2 t}) / (s2 - s1).
+    d = s1 - s2
+    q = q0 * np.exp(s1 * t) * (1.0 + s1 * np.expm1(-d * t) / d)
+    v = -q0 * s1 * s2 * np.exp(s1 * t) * (-np.expm1(-d * t)) / d
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        x = pinlin.response(model, t, [q0, 0.0]).x
+    assert _rel(x, np.column_stack([q, v])) <= 1e-10
 
 
 # --------------------------------------------------------------------------------------------
