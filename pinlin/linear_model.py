@@ -209,6 +209,35 @@ def _check_second_order(model: LinearModel) -> None:
                 "dynamics, or none of them")
 
 
+def _check_point_sizes(model: LinearModel) -> None:
+    """Refuse an operating point whose vectors do not fit the model: u with other than one
+    entry per input, y other than one per output, v (and a, residual) fewer than the n/2
+    coordinates of the states [dq; v] (a mechanism's states are its independent
+    coordinates, fewer than v's), q fewer than v.
+
+    Raises:
+        ShapeError: naming the vector, its size and what the model needs.
+    """
+    op = model.operating_point
+    if op is None:
+        return
+    sizes = {key: None if getattr(op, key) is None else np.size(getattr(op, key))
+             for key in ("q", "v", "u", "y")}
+    need = {"u": (model.n_inputs, "one per input"), "y": (model.n_outputs, "one per output")}
+    for key, (size, what) in need.items():
+        if sizes[key] is not None and sizes[key] != size:
+            raise ShapeError(f"model '{model.name}': operating_point.{key} has {sizes[key]} "
+                             f"entries, expected {size} ({what})")
+    nv, nq = sizes["v"], sizes["q"]
+    if nv is not None and nv < model.n_states // 2:
+        raise ShapeError(f"model '{model.name}': operating_point.v has {nv} entries, fewer "
+                         f"than the {model.n_states // 2} coordinates of the states")
+    if nq is not None and nq < (nv or 0):
+        raise ShapeError(f"model '{model.name}': operating_point.q has {nq} entries, fewer "
+                         f"than v's {nv} (a configuration has at least one entry per "
+                         "velocity)")
+
+
 def _check_finite(fields: Mapping[str, Any], model: str) -> None:
     """Refuse NaN or inf in any matrix present.
 
@@ -319,7 +348,8 @@ class LinearModel:
             object.__setattr__(self, "G", _matrix("G", G, G.shape))
         if self.f0 is not None:
             f0 = real_array(self.f0, "f0", f"{n} real numbers (the drift)")
-            f0 = _matrix("f0", f0.reshape(-1, 1) if f0.size == n else f0, (n, 1))
+            vector = f0.size == n and (f0.ndim == 1 or (f0.ndim == 2 and 1 in f0.shape))
+            f0 = _matrix("f0", f0.reshape(-1, 1) if vector else f0, (n, 1))
             object.__setattr__(self, "f0", f0.reshape(n))
         dt = self.dt
         if isinstance(dt, bool) or not isinstance(dt, int | float | np.floating) \
@@ -333,6 +363,7 @@ class LinearModel:
                                                                 OperatingPoint):
             raise ArgumentError("operating_point", "expected an OperatingPoint or None, got "
                                                    f"{type(self.operating_point).__name__}")
+        _check_point_sizes(self)
         if not isinstance(self.info, Mapping):
             raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
         object.__setattr__(self, "info", dict(self.info))

@@ -170,14 +170,12 @@ def _model_fields(path: Path, doc: Mapping[str, Any], meta: Mapping[str, Any]
     if op is not None and not isinstance(op, Mapping):
         raise _bad(path, f"field 'operating_point' must be a table, got {type(op).__name__}")
     try:
-        point = _op_from_dict(op) if op else None
+        point = _op_from_dict(op) if op is not None else None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise _bad(path, f"field 'operating_point' is malformed: {_describe(exc)}") from None
     dt = meta.get("dt", 0.0)
     if isinstance(dt, bool) or not isinstance(dt, int | float):
         raise _bad(path, f"field 'dt' must be a number of seconds, got {type(dt).__name__}")
-    if "f0" in kwargs:
-        kwargs["f0"] = kwargs["f0"].reshape(-1)
     return {**kwargs, **names, "operating_point": point, "name": name, "info": info,
             "dt": float(dt)}
 

@@ -296,6 +296,13 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
     if meta.get("kind") != KIND:
         raise ModelFileError(path, "not a pinlin trajectory model file (a single model's? "
                                    "read it with pinlin.LinearModel.load)")
+    if meta.get("version") != 1 or isinstance(meta.get("version"), bool):
+        raise ModelFileError(path, f"format version {meta.get('version')!r:.40} is not one this "
+                                   "pinlin reads (1)")
+    unknown = sorted(set(meta) - {"kind", "version", "name", "info", "dt"})
+    if unknown:
+        raise ModelFileError(path, f"unknown metadata key {unknown[0]!r:.60}; expected kind, "
+                                   "version, name, info, dt")
     missing = [k for k in (*_STACKS, *_NAMES) if k not in doc]
     if missing:
         raise ModelFileError(path, f"missing {', '.join(map(repr, missing))}")
@@ -317,8 +324,13 @@ def load_trajectory_model(path: str | Path, cls: type) -> Any:
         raise ModelFileError(path, f"'A' must be a stack of matrices (N, n, n), got shape "
                                    f"{A.shape}")
     N = A.shape[0]
-    if "t" in fields:
-        fields["t"] = fields["t"].reshape(-1)   # finite, increasing: the constructor checks
+    if "t" in fields:   # (N,), or the column (N, 1) a .mat file keeps
+        t = fields["t"]
+        if t.ndim == 2 and t.shape[1] == 1 and path.suffix == ".mat":
+            t = t.reshape(-1)
+        if t.ndim != 1:
+            raise ModelFileError(path, f"'t' must be a list of times (N,), got shape {t.shape}")
+        fields["t"] = t   # finite, increasing: the constructor checks
     n, m, p = (len(fields[k]) for k in _NAMES)
     half = n // 2  # second-order matrices: the coordinates of the states
     for key, shape in (("u", (N, m)), ("B", (N, n, m)), ("D", (1, p, m)),

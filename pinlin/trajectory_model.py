@@ -19,7 +19,8 @@ import numpy as np
 
 from .arrays import real_array, restore_read_only
 from .exceptions import ArgumentError, ModelError, ShapeError
-from .linear_model import LinearModel
+from .fields import show
+from .linear_model import LinearModel, _names
 from .operating_point import OperatingPoint
 
 #: Key of a model's record of where its arrays came from (:mod:`pinlin.trajectory_buffers`):
@@ -120,13 +121,8 @@ class TrajectoryModel:
     def __post_init__(self) -> None:
         names = {}
         for key in ("state_names", "input_names", "output_names"):
-            value = getattr(self, key)
-            if isinstance(value, str) or not isinstance(value, Sequence | np.ndarray) or \
-                    not all(isinstance(s, str) for s in value):
-                raise ArgumentError(key, "expected a sequence of names (strings)")
-            names[key] = tuple(value)
-            if len(set(names[key])) != len(names[key]):
-                raise ModelError(f"trajectory model '{self.name}': {key} are not distinct")
+            # as a LinearModel's: distinct, non-blank, no control characters (at(k) makes one)
+            names[key] = _names(key, getattr(self, key), f"trajectory model '{self.name}'")
             object.__setattr__(self, key, names[key])
         n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
         N = np.shape(self.A)[0] if np.ndim(self.A) == 3 else -1
@@ -148,6 +144,7 @@ class TrajectoryModel:
                 continue
             arr = _stack(key, value, shape)
             object.__setattr__(self, key, arr)
+        _check_widths(self, n)
         if self.t is not None and np.any(np.diff(self.t) <= 0):
             raise ArgumentError("t", "times must increase strictly (one per point, as "
                                      "linearize_trajectory takes them)")
@@ -161,6 +158,7 @@ class TrajectoryModel:
         if not isinstance(self.info, Mapping):
             raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
         object.__setattr__(self, "info", dict(self.info))
+        _check_info(self)
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickling: the fields, without the record of the arrays' origin
@@ -314,6 +312,54 @@ class TrajectoryModel:
         from .trajectory_files import load_trajectory_model
 
         return load_trajectory_model(path, cls)
+
+
+def _check_widths(model: TrajectoryModel, n: int) -> None:
+    """A configuration has at least one entry per velocity (nq >= nv), and the velocities
+    cover the n/2 coordinates of the states [dq; v] (a mechanism's states are its
+    independent coordinates, fewer than nv).
+
+    Raises:
+        ShapeError: naming the array and the widths.
+    """
+    nq, nv = model.q.shape[1], model.v.shape[1]
+    if nv < n // 2:
+        raise ShapeError(f"v and a must have at least n/2 = {n // 2} columns (the coordinates "
+                         f"of the states), got {nv}")
+    if nq < nv:
+        raise ShapeError(f"q must have at least as many columns as v ({nv}), got {nq}")
+
+
+def _check_info(model: TrajectoryModel) -> None:
+    """The entries of ``info`` that :meth:`TrajectoryModel.at` reads: ``lam_names`` (one
+    string per column of lam, given exactly when lam is), ``at_rest`` (a boolean) and a
+    mechanism's ``loops`` (lists of N numbers: condition, velocity_correction,
+    position_correction).
+
+    Raises:
+        ArgumentError: naming the entry and what it must be.
+    """
+    info, N = model.info, model.A.shape[0]
+    names = info.get("lam_names", ())
+    width = 0 if model.lam is None else model.lam.shape[1]
+    if isinstance(names, str) or not isinstance(names, Sequence) or \
+            not all(isinstance(x, str) for x in names) or len(names) != width:
+        raise ArgumentError("info", f"info['lam_names'] must name each of the {width} columns "
+                                    f"of lam (a list of strings), got {show(names)}")
+    if not isinstance(info.get("at_rest", False), bool):
+        raise ArgumentError("info", f"info['at_rest'] must be true or false, got "
+                                    f"{show(info['at_rest'])}")
+    loops = info.get("loops")
+    if loops is None:
+        return
+    keys = ("condition", "velocity_correction", "position_correction")
+    if not isinstance(loops, Mapping) or any(
+            isinstance(loops.get(k), str) or not isinstance(loops.get(k), Sequence)
+            or len(loops[k]) != N or not all(isinstance(x, int | float) and
+                                             not isinstance(x, bool) for x in loops[k])
+            for k in keys):
+        raise ArgumentError("info", f"info['loops'] must hold {', '.join(keys)}: lists of "
+                                    f"{N} numbers, one per point")
 
 
 def _stack(key: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:

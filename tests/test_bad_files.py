@@ -953,3 +953,104 @@ def test_states_csv_lines_that_are_not_one_record_are_refused(row, words, capfd,
                        tmp_path / "out.npz")
     assert_refused(code, err, "states.csv", "line 2", words)
     assert not (tmp_path / "out.npz").exists()
+
+
+@pytest.mark.parametrize("edit, words", [
+    ({"q": [0.0] * 7}, None),                       # wider than v: any nq >= nv loads
+    ({"q": []}, "operating_point.q has 0 entries"),
+    ({"q": [0.0] * 3, "v": [0.0] * 3, "a": [0.0] * 3, "residual": [0.0] * 3}, None),
+    ({"v": [0.0] * 3, "a": [0.0] * 3, "residual": [0.0] * 3}, "operating_point.q has 2"),
+    ({"v": [0.0], "a": [0.0], "residual": [0.0]}, "operating_point.v has 1 entries"),
+    ({"u": [0.0] * 5}, "operating_point.u has 5 entries, expected 2"),
+    ({"y": [0.0] * 9}, "operating_point.y has 9 entries, expected 3"),
+    ("empty", "operating_point"),
+], ids=["q_wider", "q_empty", "v_wider", "q_narrower_than_v", "v_narrow", "u", "y",
+        "empty_table"])
+def test_an_operating_point_that_does_not_fit_the_model_is_refused(edit, words, tmp_path):
+    """Checked against the model's sizes when the file loads (before, every variant loaded
+    and failed later, at use, without naming the file; an empty table read as no point)."""
+    scene = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml")
+    path = tmp_path / "m.json"
+    pinlin.linearize(scene).save(path)
+    doc = json.loads(path.read_text())
+    if edit == "empty":
+        doc["operating_point"] = {}
+    else:
+        doc["operating_point"].update(edit)
+    path.write_text(json.dumps(doc))
+    if words is None:
+        LinearModel.load(path)
+        return
+    with pytest.raises(ModelFileError, match=f"m\\.json.*{words}"):
+        LinearModel.load(path)
+
+
+def test_f0_of_another_shape_is_refused(tmp_path):
+    """f0 is n numbers, as a row or a column; a 2 x 2 block of them is not (it was
+    flattened)."""
+    scene = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml")
+    path = tmp_path / "m.json"
+    pinlin.linearize(scene, v=[0.5, -0.2]).save(path)
+    doc = json.loads(path.read_text())
+    f0 = np.array(doc["f0"], dtype=float).reshape(-1)
+    for good in (f0.reshape(1, 4), f0.reshape(4, 1)):
+        doc["f0"] = good.tolist()
+        path.write_text(json.dumps(doc))
+        np.testing.assert_array_equal(LinearModel.load(path).f0, f0)
+    doc["f0"] = f0.reshape(2, 2).tolist()
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ModelFileError, match="f0"):
+        LinearModel.load(path)
+
+
+def _edit_trajectory_file(src: Path, dst: Path, arrays=None, meta=None, info=None) -> None:
+    members = dict(np.load(src))
+    members.update(arrays or {})
+    doc = json.loads(str(members["meta"]))
+    doc.update(meta or {})
+    doc["info"].update(info or {})
+    members["meta"] = np.array(json.dumps(doc))
+    np.savez(dst, **members)
+
+
+@pytest.mark.parametrize("edit, words", [
+    ({"arrays": {"q": np.zeros((5, 1))}}, "q must have at least as many columns as v"),
+    ({"arrays": {"v": np.zeros((5, 1)), "a": np.zeros((5, 1))}}, "at least n/2 = 2 columns"),
+    ({"arrays": {"output_names": np.array(["a\nb", "c", "d"])}}, "control characters"),
+    ({"arrays": {"output_names": np.array(["  ", "c", "d"])}}, "empty or blank"),
+    ({"arrays": {"lam": np.zeros((5, 3))}}, r"lam_names'\] must name each of the 3"),
+    ({"info": {"lam_names": "abc"}}, r"lam_names'\] must name each of the 0"),
+    ({"info": {"at_rest": "yes"}}, r"at_rest'\] must be true or false"),
+    ({"info": {"loops": 5}}, r"loops'\] must hold"),
+    ({"info": {"loops": {"condition": [1.0]}}}, r"loops'\] must hold"),
+    ({"meta": {"version": 99}}, "format version 99"),
+    ({"meta": {"foo": 1}}, "unknown metadata key 'foo'"),
+    ({"arrays": {"t": np.linspace(0, 1, 5).reshape(5, 1)}}, r"'t' must be a list of times"),
+], ids=["q_narrow", "v_narrow", "name_newline", "name_blank", "lam_unnamed",
+        "lam_names_text", "at_rest", "loops_number", "loops_short", "version", "meta_key",
+        "t_column"])
+def test_a_trajectory_file_that_does_not_fit_is_refused_when_it_loads(edit, words, tmp_path):
+    """Widths, names and the info that at(k) reads are checked when the file loads, naming
+    it (before: each loaded, and failed at use, in at(k) or later, with a traceback or a
+    message about another argument; a future format version was read as version 1)."""
+    scene = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml")
+    rng = np.random.default_rng(2)
+    q, v, u = rng.normal(size=(5, 2)), rng.normal(size=(5, 2)), rng.normal(size=(5, 2))
+    good = tmp_path / "t.npz"
+    pinlin.linearize_trajectory(scene, q, v, u, t=np.linspace(0, 1, 5)).save(good)
+    bad = tmp_path / "bad.npz"
+    _edit_trajectory_file(good, bad, **edit)
+    with pytest.raises(ModelFileError, match=f"bad\\.npz.*{words}"):
+        pinlin.TrajectoryModel.load(bad)
+
+
+def test_a_mechanism_trajectory_file_keeps_its_loops_and_forces(tmp_path):
+    """The checks admit what pinlin writes: a four-bar's lam, lam_names and loops."""
+    scene = pinlin.Scene.load(URDF_DIR / "four_bar.toml")
+    q = np.tile(pinlin.linearize(scene).operating_point.q, (4, 1))
+    traj = pinlin.linearize_trajectory(scene, q, np.zeros((4, 3)), np.zeros((4, 1)))
+    assert traj.lam is not None and "loops" in traj.info
+    for suffix in (".npz", ".mat"):
+        again = pinlin.TrajectoryModel.load(traj.save(tmp_path / f"t{suffix}"))
+        np.testing.assert_array_equal(again.lam, traj.lam)
+        assert again.at(2).operating_point.lam_names == traj.at(2).operating_point.lam_names
