@@ -12,9 +12,13 @@ Method. ``method=None`` chooses by a stated criterion: with rho = max(-Re lambda
 decay rate of the ODE's Jacobian at the initial state (central differences; the linear model
 there), the problem is stiff when rho T > :data:`STIFF_LIMIT` for the horizon T: an explicit
 method would spend more than ~STIFF_LIMIT / 5 steps on stability alone (|h lambda| < ~5 for
-DOP853), steps an implicit one does not need. Stiff: ``"Radau"`` (implicit, order 5); else
-``"DOP853"`` (explicit, order 8). Undamped fast oscillations do not count: every method must
-resolve them.
+DOP853), steps an implicit one does not need, and when rho exceeds :data:`STIFF_RATIO` times
+the fastest rate that every method must resolve (an oscillation's, or a growing motion's: a
+pendulum near upright has lambda = +-3.13 1/s, whose decay half is no reason for an implicit
+method; with rho T alone, 400 s of it took Radau 41 s against DOP853's 1 s). Stiff:
+``"Radau"`` (implicit, order 5); else ``"DOP853"`` (explicit, order 8). Undamped fast
+oscillations do not count: every method must resolve them. A horizon of more than
+:data:`MAX_CYCLES` periods of the fastest oscillation or growth is refused.
 """
 
 from __future__ import annotations
@@ -38,8 +42,12 @@ from .signals import Signal
 from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain
 from .system import System
 
-#: rho * T above this is stiff (rho: fastest decay rate [1/s], T: horizon [s]).
+#: rho * T above this is stiff (rho: fastest decay rate [1/s], T: horizon [s]) ...
 STIFF_LIMIT = 1e3
+#: ... when rho also exceeds this many times the fastest rate every method must resolve
+#: (oscillation or growth): below, an explicit method's steps for accuracy (~10 a period)
+#: already keep it stable (|h lambda| < ~5).
+STIFF_RATIO = 10.0
 METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
 
 
@@ -143,10 +151,10 @@ class _Inputs:
         return self.u0 + du
 
 
-#: Periods of the fastest oscillation (max |Im lambda| T / 2 pi of the Jacobian at the
-#: start) beyond which a horizon is refused: any integrator, implicit too, takes ~10 steps a
-#: period to follow it, so 1e5 periods are ~1e6 steps of a Python right-hand side (minutes);
-#: beyond, a typo in t (1e9 s for 1e-9) would run for days.
+#: Periods of the fastest oscillation or growth (max(|Im lambda|, Re lambda) T / 2 pi of the
+#: Jacobian at the start) beyond which a horizon is refused: any integrator, implicit too,
+#: takes ~10 steps a period to follow it, so 1e5 periods are ~1e6 steps of a Python
+#: right-hand side (minutes); beyond, a typo in t (1e9 s for 1e-9) would run for days.
 MAX_CYCLES = 1e5
 
 
@@ -164,19 +172,27 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
         J[:, k] = (dyn.rhs(t0, s0 + e, u) - dyn.rhs(t0, s0 - e, u)) / (2 * h)
     dyn.state(s0)  # back to the initial configuration (mechanisms warm-start from it)
     lam = np.linalg.eigvals(J) if n else np.zeros(0)
+    # The rates any method must resolve: oscillations, and growth (a motion that leaves an
+    # unstable point, a pendulum near upright, turns into swings of about that rate).
     omega = float(np.abs(lam.imag).max(initial=0.0))
-    cycles = omega * T / (2.0 * np.pi)
+    growth = max(0.0, float(lam.real.max(initial=0.0)))
+    rate = max(omega, growth)
+    cycles = rate * T / (2.0 * np.pi)
     if not cycles <= MAX_CYCLES:
+        what = "oscillation" if omega >= growth else "growing motion"
         raise ArgumentError("t", f"the horizon {T:.3g} s spans {cycles:.3g} periods of the "
-                                 f"fastest oscillation ({omega:.3g} rad/s at the start): more "
-                                 f"than {MAX_CYCLES:g}, which an integrator must resolve step "
-                                 "by step (~10 steps a period); simulate a shorter horizon")
+                                 f"fastest {what} ({rate:.3g} rad/s at the start): more than "
+                                 f"{MAX_CYCLES:g}, which an integrator must resolve step by "
+                                 "step (~10 steps a period); simulate a shorter horizon")
     rho = max(0.0, float(-lam.real.min(initial=0.0)))
     stiff = rho * T
-    method = "Radau" if stiff > STIFF_LIMIT else "DOP853"
+    if stiff > STIFF_LIMIT and rho > STIFF_RATIO * rate:
+        method, verdict = "Radau", f"> {STIFF_LIMIT:g} and {rho:.3g} > {STIFF_RATIO:g} x "
+    else:
+        method, verdict = "DOP853", f"<= {STIFF_LIMIT:g} or {rho:.3g} <= {STIFF_RATIO:g} x "
     why = (f"fastest decay rate {rho:.3g} 1/s times the horizon {T:.3g} s = {stiff:.3g} "
-           f"{'>' if stiff > STIFF_LIMIT else '<='} {STIFF_LIMIT:g}: "
-           f"{'stiff' if stiff > STIFF_LIMIT else 'not stiff'}")
+           f"{verdict}the fastest rate to resolve ({rate:.3g} 1/s): "
+           f"{'stiff' if method == 'Radau' else 'not stiff'}")
     return method, stiff, why
 
 

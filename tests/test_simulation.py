@@ -297,6 +297,18 @@ def test_stiff_scene_is_integrated_implicitly():
     assert np.all(np.diff(stiff.energy) <= 1e-12)  # damping only dissipates
 
 
+def test_a_saddle_is_not_stiff_and_its_horizon_counts_its_growth():
+    """The pendulum released 0.04 rad from upright: the Jacobian's lambda = +-3.13 1/s. Its
+    decay half is no stiffness (rho T = 1250 over 400 s chose Radau: 121 290 steps, 41 s,
+    against DOP853's 1 s), and its growth is a rate to resolve: 1e7 s (5e6 periods of it)
+    is refused before integrating (it ran for days, since only Im lambda was counted)."""
+    t = np.linspace(0.0, 400.0, 401)
+    sim = pinlin.simulate("pendulum", t, dx0=[3.1, 0.0])
+    assert sim.info["method"] == "DOP853" and sim.info["stiffness"] > 1e3, sim.info
+    with pytest.raises(pinlin.ArgumentError, match="periods of the fastest growing motion"):
+        pinlin.simulate("pendulum", [0.0, 1e7], dx0=[3.1, 0.0])
+
+
 def test_outputs_and_names():
     sim = pinlin.simulate("four_bar", [0.0, 0.1], dx0=[0.1, 0.0])
     model = pinlin.linearize("four_bar")
