@@ -129,24 +129,26 @@ def zoh_rounding(A: np.ndarray, dt: float) -> float:
     return _EPS * norm * dt
 
 
-def warn_if_inaccurate(name: str, dt: float, A: np.ndarray) -> None:
+def warn_if_inaccurate(name: str, dt: float, A: np.ndarray, advice: str = "use a shorter dt"
+                       ) -> None:
     """AccuracyWarning when the zero-order hold over ``dt`` [s] of ``A`` may lose more than
     WARN_ZOH_ERROR (relative) to rounding: the sample time is ~1e10 times the model's fastest
     time scale or more, and the discrete matrices keep few correct digits; a ModelError
     where the estimate reaches 1, no correct digit left (an undamped double pendulum over
-    1e15 s came back with |eig(A_d)| = 0.55 for 1, over 1e30 s with A_d = 0)."""
+    1e15 s came back with |eig(A_d)| = 0.55 for 1, over 1e30 s with A_d = 0). ``advice``
+    ends the message."""
     error = zoh_rounding(A, dt)
     if error >= 1.0:
         raise ModelError(f"model '{name}': a zero-order hold over dt = {dt:g} s spans "
                          f"||A|| dt = {error / _EPS:.2e} of the model's fastest time scale; "
                          f"rounding in the matrix exponential reaches {error:.1e} (relative), "
-                         "no correct digit is left; use a shorter dt")
+                         f"no correct digit is left; {advice}")
     if error > WARN_ZOH_ERROR:
         warnings.warn(AccuracyWarning(
             f"model '{name}': a zero-order hold over dt = {dt:g} s spans ||A|| dt = "
             f"{error / _EPS:.2e} of the model's fastest time scale; rounding in the matrix "
-            f"exponential may reach {error:.1e} (relative) of the discrete matrices; use a "
-            "shorter dt", 1.0 / max(error, _EPS)), stacklevel=3)
+            f"exponential may reach {error:.1e} (relative) of the discrete matrices; {advice}",
+            1.0 / max(error, _EPS)), stacklevel=3)
 
 
 def refuse_overflow(name: str, dt: float, method: str, A_d: np.ndarray, B_d: np.ndarray,

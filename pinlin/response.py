@@ -58,8 +58,10 @@ import numpy as np
 import scipy.linalg as sla
 
 from .arrays import real_array
+from .discretization import warn_if_inaccurate
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .linear_model import LinearModel
+from .resources import check_memory
 from .signals import Signal
 
 if TYPE_CHECKING:
@@ -146,8 +148,13 @@ def response(model: LinearModel, t: np.ndarray | Sequence[float],
         raise ArgumentError("method", f"expected one of {', '.join(map(repr, METHODS))}, got "
                                       f"{method!r:.60}")
     t = _times(t)
-    std = model.standard_form()
     n, m = model.n_states, model.n_inputs
+    # The arrays of the march (complex modal coordinates, states, outputs, inputs, held
+    # samples, signal states) before any is allocated (2e7 samples of ur5 raised numpy's
+    # MemoryError).
+    check_memory(len(t) * 16 * (4 * n + model.n_outputs + 3 * m + 2),
+                 f"model '{model.name}': the response at {len(t)} sample times")
+    std = model.standard_form()
     x0 = _initial(x0, model)
     U, signal = _inputs(u, model, t)
     has_E = std is not model
@@ -185,7 +192,11 @@ def _march_all(model, std, method, modes, f0, c, mu, t, held, xs0, U, E, F, note
     """(x, y) at the samples: the march in the chosen coordinates (see :func:`response`);
     ``F`` only where the input is a signal (its derivative known)."""
     n = model.n_states
-    if method == "exact":
+    if method == "exact":   # each step h an expm of A h: as a zero-order hold over h warns
+        if len(t) > 1:
+            warn_if_inaccurate(model.name, float(np.diff(t).max()), std.A,
+                               "use shorter steps between the sample times, or "
+                               "method='modal' (exact per mode)")
         xs = _march(std.A, ((0, n),), std.B, f0, c, mu, t, held, xs0).real
         notes.append("matrix exponential of the augmented matrix [[A, B, f0], [0, 0, 0]] h")
     else:
@@ -209,9 +220,15 @@ def _check_finite(model: LinearModel, t: np.ndarray, x: np.ndarray, y: np.ndarra
     if not bad.any():
         return
     k = int(np.argmax(bad))
-    lam = np.linalg.eigvals(model.standard_form().A) if not model.dt else None
-    growth = "" if lam is None or not lam.size or lam.real.max() <= 0 else (
-        f"; its fastest mode grows at Re(lam) = {float(lam.real.max()):.4g} 1/s")
+    A = model.standard_form().A
+    lam = np.linalg.eigvals(A) if not model.dt else None
+    # Re(lam) within rounding of zero (10 n eps |A|_F, as modal's) is no growth: a neutrally
+    # stable model (3e-17 1/s from eigvals) over 1e308 s overflows by rounding alone.
+    noise = 10 * A.shape[0] * float(np.finfo(float).eps) * float(np.linalg.norm(A))
+    growth = "" if lam is None or not lam.size else (
+        f"; its fastest mode grows at Re(lam) = {float(lam.real.max()):.4g} 1/s"
+        if lam.real.max() > noise else "; no mode grows beyond rounding, but its rounding "
+        "does over this horizon")
     raise ModelError(f"model '{model.name}': the response leaves float64's range at "
                      f"t = {t[k]:.6g} s (sample {k}){growth}; end the time span earlier")
 
@@ -381,7 +398,7 @@ def _discrete(model: LinearModel, t: np.ndarray, x0: np.ndarray, U: np.ndarray,
     N = len(t)
     grid = t[0] + dt * np.arange(N)
     if np.abs(t - grid).max() > DT_RTOL * dt:
-        raise ArgumentError("t", f"model '{model.name}' is discrete (dt = {dt:g} s): the "
+        raise ArgumentError("t", f"model '{model.name}' is discrete (dt = {dt!r} s): the "
                                  f"sample times must be t[0] + k dt")
     for key in ("E", "F"):
         mat = getattr(model, key)

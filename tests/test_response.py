@@ -649,3 +649,45 @@ def test_discretize_takes_any_real_sample_time_and_refuses_the_rest():
     for bad in (0.0, -1.0, True, "1", float("nan")):
         with pytest.raises(pinlin.ArgumentError, match="argument 'dt'"):
             model.discretize(bad)
+
+
+def test_exact_steps_too_long_for_their_digits_warn_or_are_refused():
+    """The undamped double pendulum in one step: its energy 1/2 v'Mv + 1/2 q'Kq came back at
+    0.31x after 1e15 s with no word. As a zero-order hold over the step would: a warning from
+    eps ||A||_1 h > 1e-6 (1e9 s), a refusal where no digit is left (1e15 s); the modal march
+    (exact per mode) keeps the energy there."""
+    model = pinlin.linearize(pinlin.Scene.load(URDF_DIR / "double_pendulum.toml"))
+    x0 = [0.01, 0.0, 0.0, 0.0]
+    with pytest.warns(pinlin.AccuracyWarning, match="dt = 1e\\+09 s"):
+        pinlin.response(model, [0.0, 1e9], x0, method="exact")
+    with pytest.raises(pinlin.ModelError, match="no correct digit.*method='modal'"):
+        pinlin.response(model, [0.0, 1e15], x0, method="exact")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pinlin.response(model, np.linspace(0.0, 10.0, 101), x0, method="exact")
+
+    def energy(x):
+        q, v = x[:2], x[2:]
+        return 0.5 * v @ model.M @ v + 0.5 * q @ model.K @ q
+
+    far = pinlin.response(model, [0.0, 1e15], x0, method="modal").x[-1]
+    assert abs(energy(far) / energy(np.array(x0)) - 1.0) <= 1e-6
+
+
+def test_a_response_too_large_for_memory_is_refused_before_it_allocates():
+    """2e7 samples of a 12-state model ran into numpy's MemoryError under a 4 GB limit; the
+    response's arrays are now counted first (here 2e6 samples, ~2 GB, under a 100 MB limit):
+    a ResourceError naming the samples, before the march allocates."""
+    model = pinlin.linearize(pinlin.Scene.load(URDF_DIR / "ur5_arm.toml"))
+    t = np.arange(2_000_000, dtype=float) * 1e-4
+    with pinlin.resources.memory_limit_override("100M"), \
+            pytest.raises(pinlin.ResourceError, match="2000000 sample times"):
+        pinlin.response(model, t, method="exact")
+
+
+def test_rounding_is_not_called_growth():
+    """A neutrally stable model overflowing over 1e308 s: eigvals gives Re(lam) ~ 3e-17 1/s,
+    which is rounding; the message says so rather than naming a growth rate."""
+    model = pinlin.linearize(pinlin.Scene.load(URDF_DIR / "double_pendulum.toml"))
+    with pytest.raises(pinlin.ModelError, match="no mode grows beyond rounding"):
+        pinlin.response(model, [0.0, 1e308, 1.7e308], [0.01, 0.0, 0.0, 0.0])
