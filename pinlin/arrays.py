@@ -107,6 +107,30 @@ def real_array(value: object, name: str, expected: str) -> np.ndarray:
                                   f"{value!r:.60}") from None
 
 
+def sample_times(t: object) -> np.ndarray:
+    """``t`` as sample times [s]: a new 1-D float64 array, finite and strictly increasing, at
+    least one entry (a number is one time); the steps between them finite too (two times of
+    +-1e308 have an infinite span).
+
+    Raises:
+        ArgumentError: naming ``t`` and what is wrong.
+    """
+    arr = real_array(t, "t", "a 1-D sequence of sample times [s]")
+    if arr.ndim == 0:   # one time, as a number
+        arr = arr.reshape(1)
+    if arr.ndim != 1 or arr.size == 0:
+        raise ArgumentError("t", "expected a 1-D sequence of sample times [s] (at least one)")
+    with np.errstate(all="ignore"):   # inf - inf of a bad sample, refused just below
+        steps = np.diff(arr)
+    if not np.all(np.isfinite(arr)) or np.any(steps <= 0):
+        raise ArgumentError("t", "expected finite, strictly increasing sample times [s]")
+    if not np.all(np.isfinite(steps)):
+        raise ArgumentError("t", f"the span from {arr[0]:g} to {arr[-1]:g} s between two "
+                                 "samples exceeds float64's range; give times within "
+                                 "+-8.9e307 s of each other")
+    return arr
+
+
 def restore_read_only(obj: object, state: dict) -> None:
     """``obj.__dict__`` from a pickled ``state``, its arrays read-only again (pickle hands
     numpy arrays back writeable): the ``__setstate__`` of the frozen models."""

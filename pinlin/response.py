@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg as sla
 
-from .arrays import real_array
+from .arrays import real_array, sample_times
 from .discretization import warn_if_inaccurate
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .linear_model import LinearModel
@@ -147,7 +147,7 @@ def response(model: LinearModel, t: np.ndarray | Sequence[float],
     if not isinstance(method, str) or method not in METHODS:
         raise ArgumentError("method", f"expected one of {', '.join(map(repr, METHODS))}, got "
                                       f"{method!r:.60}")
-    t = _times(t)
+    t = sample_times(t)
     n, m = model.n_states, model.n_inputs
     # The arrays of the march (complex modal coordinates, states, outputs, inputs, held
     # samples, signal states) before any is allocated (2e7 samples of ur5 raised numpy's
@@ -257,23 +257,6 @@ def _result(model: LinearModel, t: np.ndarray, x: np.ndarray, y: np.ndarray, U: 
 
 
 # --------------------------------------------------------------------------------------------
-def _times(t: object) -> np.ndarray:
-    arr = real_array(t, "t", "a 1-D sequence of sample times [s]")
-    if arr.ndim == 0:   # one time, as a number
-        arr = arr.reshape(1)
-    if arr.ndim != 1 or arr.size == 0:
-        raise ArgumentError("t", "expected a 1-D sequence of sample times [s] (at least one)")
-    with np.errstate(all="ignore"):   # inf - inf of a bad sample, refused just below
-        steps = np.diff(arr)
-    if not np.all(np.isfinite(arr)) or np.any(steps <= 0):
-        raise ArgumentError("t", "expected finite, strictly increasing sample times [s]")
-    if not np.all(np.isfinite(steps)):
-        raise ArgumentError("t", f"the span from {arr[0]:g} to {arr[-1]:g} s between two "
-                                 "samples exceeds float64's range; give times within "
-                                 "+-8.9e307 s of each other")
-    return arr
-
-
 def _initial(x0: object, model: LinearModel) -> np.ndarray:
     n = model.n_states
     if x0 is None:

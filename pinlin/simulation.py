@@ -32,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 import scipy.integrate
 
-from .arrays import read_only, real_array
+from .arrays import read_only, real_array, sample_times
 from .exceptions import ArgumentError, ModelError
 from .formulations.constrained import constrained_effects
 from .linearization import _system, operating_point
@@ -299,11 +299,8 @@ def _energy(system: System, op: OperatingPoint, Q: np.ndarray, V: np.ndarray,
 
 
 def _time_grid(t: object) -> np.ndarray:
-    grid = real_array(t, "t", "an increasing sequence of times [s]")
-    if grid.ndim != 1 or grid.size < 1 or not np.all(np.isfinite(grid)) \
-            or np.any(np.diff(grid) <= 0.0):
-        raise ArgumentError("t", "expected a 1-D, finite, strictly increasing sequence of "
-                                 "times [s] with at least one entry")
+    """:func:`pinlin.arrays.sample_times`, at most :data:`MAX_SAMPLES` of them."""
+    grid = sample_times(t)
     if grid.size > MAX_SAMPLES:
         raise ArgumentError("t", f"{grid.size} output times; at most {MAX_SAMPLES} (each is "
                                  f"a nonlinear state turned into the model's coordinates): "
