@@ -18,6 +18,7 @@ scipy's wrappers, whose argument checks cost several times the factorization at 
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -340,9 +341,31 @@ def assemble_with_jacobian(system, q_guess: np.ndarray, independent: np.ndarray,
         if found is not None:
             return found[0].copy(), found[1].copy()
     q, jac = _newton(system, q_guess, independent, max_iter, start)
+    q, jac = _unwound(system, q, q_guess, jac)
     if store is not None:
         store.put(key, q, jac)
     return q, jac
+
+
+def _unwound(system, q: np.ndarray, q_guess: np.ndarray, jac: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(q, Phi_q(q)) with each revolute angle (1-DoF rotation stored as an angle) moved by
+    whole turns to lie within pi of its guess. Newton from a guess near a singular position
+    jumps far (Phi_d nearly singular): the five-bar assembled from guesses within +-pi at
+    angles of up to 468 rad, closed but wound 74 turns from the guess. Whole turns change no
+    position (only the angle's rounding, ~|q| eps); an angle within pi of its guess is left
+    as it is, bit for bit."""
+    if not float(np.abs(q - q_guess).max(initial=0.0)) > math.pi:
+        return q, jac
+    out = q.copy()
+    for joint in system.joints.values():
+        if joint.nq == 1 and joint.nv == 1 and joint.kind.startswith("JointModelR") \
+                and not joint.kind.startswith("JointModelRUB"):
+            i = joint.idx_q
+            out[i] -= 2.0 * math.pi * round((out[i] - q_guess[i]) / (2.0 * math.pi))
+    if np.array_equal(out, q):
+        return q, jac
+    return out, system.constraints.residual_and_jacobian(out)[1]
 
 
 def assemble_guess(system, q_guess: np.ndarray, *, cache: bool = True,
