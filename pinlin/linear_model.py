@@ -211,9 +211,9 @@ def _check_second_order(model: LinearModel) -> None:
 
 def _check_point_sizes(model: LinearModel) -> None:
     """Refuse an operating point whose vectors do not fit the model: u with other than one
-    entry per input, y other than one per output, v (and a, residual) fewer than the n/2
-    coordinates of the states [dq; v] (a mechanism's states are its independent
-    coordinates, fewer than v's), q fewer than v.
+    entry per input, y other than one per output, v fewer than the n/2 coordinates of the
+    states [dq; v] (a mechanism's states are its independent coordinates, fewer than v's),
+    a or residual other than v's size, q fewer than v.
 
     Raises:
         ShapeError: naming the vector, its size and what the model needs.
@@ -222,13 +222,17 @@ def _check_point_sizes(model: LinearModel) -> None:
     if op is None:
         return
     sizes = {key: None if getattr(op, key) is None else np.size(getattr(op, key))
-             for key in ("q", "v", "u", "y")}
+             for key in ("q", "v", "u", "y", "a", "residual")}
     need = {"u": (model.n_inputs, "one per input"), "y": (model.n_outputs, "one per output")}
     for key, (size, what) in need.items():
         if sizes[key] is not None and sizes[key] != size:
             raise ShapeError(f"model '{model.name}': operating_point.{key} has {sizes[key]} "
                              f"entries, expected {size} ({what})")
     nv, nq = sizes["v"], sizes["q"]
+    for key in ("a", "residual"):
+        if sizes[key] is not None and nv is not None and sizes[key] != nv:
+            raise ShapeError(f"model '{model.name}': operating_point.{key} has {sizes[key]} "
+                             f"entries, expected v's {nv}")
     if nv is not None and nv < model.n_states // 2:
         raise ShapeError(f"model '{model.name}': operating_point.v has {nv} entries, fewer "
                          f"than the {model.n_states // 2} coordinates of the states")

@@ -9,7 +9,8 @@ model file holds, each element complete and of the size its header implies:
 - numeric arrays (double, single, integer classes; real or complex; logical), whose data
   elements have a numeric type and exactly prod(dims) entries;
 - character arrays (a string per variable or per cell), whose data have a character type
-  (and, for fixed-width characters, exactly prod(dims) of them);
+  (for fixed-width characters exactly prod(dims) of them, for UTF-8 between 1 and 4 bytes
+  each);
 - cell arrays of such arrays (the signal names), exactly prod(dims) cells;
 
 at the top level each variable as an array element or a compressed one holding one. Anything
@@ -30,7 +31,7 @@ NUMERIC_TYPES = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 9: 8, 12: 8, 13: 8}
 CHARACTER_TYPES = frozenset({1, 2, 4, 16, 17, 18})
 #: Bytes per character of the fixed-width character types (UTF-8, 16, has a variable width).
 CHARACTER_WIDTHS = {1: 1, 2: 1, 4: 2, 17: 2, 18: 4}
-MI_INT8, MI_INT32, MI_UINT32, MI_MATRIX, MI_COMPRESSED = 1, 5, 6, 14, 15
+MI_INT8, MI_INT32, MI_UINT32, MI_MATRIX, MI_COMPRESSED, MI_UTF8 = 1, 5, 6, 14, 15, 16
 MI_TYPES = frozenset({*NUMERIC_TYPES, MI_MATRIX, MI_COMPRESSED, 16, 17, 18})
 #: Array classes admitted: cell, char, and the numeric classes double ... uint64.
 CELL, CHAR = 1, 4
@@ -41,7 +42,8 @@ COMPLEX_FLAG = 0x0800
 HEADER = 128
 #: Cells within cells beyond this are refused (pinlin writes one level).
 MAX_DEPTH = 4
-#: A compressed element may inflate to at most this many bytes.
+#: A compressed element may inflate to at most this many bytes (and to no more than the
+#: memory limit of :mod:`pinlin.resources`).
 MAX_INFLATED = 1 << 31
 
 
@@ -58,11 +60,17 @@ def check_mat_elements(raw: bytes) -> None:
     """
     if len(raw) < HEADER:
         raise MatStructureError("shorter than a .mat file header (128 bytes)")
+    if 0 in raw[:4]:   # scipy's test for a level 4 file (no text header)
+        raise MatStructureError("a level 4 .mat file (no header text); pinlin reads level 5")
     order = {b"IM": "<", b"MI": ">"}.get(bytes(raw[126:128]))
     if order is None:
         raise MatStructureError("no level 5 .mat endian indicator at byte 126")
-    if struct.unpack_from(order + "H", raw, 124)[0] != 0x0100:
-        return
+    major = raw[125] if order == "<" else raw[124]   # scipy reads the major version so
+    if major == 2:
+        return   # v7.3 (HDF5): scipy refuses it without parsing
+    if major != 1:
+        raise MatStructureError(f"unknown .mat format version {major} (byte "
+                                f"{125 if order == '<' else 124}); pinlin reads level 5")
     for mtype, data, where in _elements(memoryview(raw)[HEADER:], order, HEADER):
         if mtype == MI_COMPRESSED:
             inner = list(_elements(memoryview(_inflate(data, where)), order, 0))
@@ -107,13 +115,14 @@ def _array(buf: memoryview, order: str, where: int, depth: int) -> None:
         raise MatStructureError(f"cells nested more than {MAX_DEPTH} deep at byte {where}")
     parts = list(_elements(buf, order, where + 8))
     if len(parts) < 3 or parts[0][0] != MI_UINT32 or len(parts[0][1]) != 8 \
-            or parts[1][0] != MI_INT32 or len(parts[1][1]) % 4 or len(parts[1][1]) < 8 \
-            or parts[2][0] != MI_INT8:
+            or parts[1][0] not in (MI_INT32, MI_UINT32) or len(parts[1][1]) % 4 \
+            or len(parts[1][1]) < 8 or parts[2][0] not in (MI_INT8, MI_UTF8):
         raise MatStructureError(f"the array at byte {where} lacks its flags, dimensions or "
                                 "name")
     flags = struct.unpack_from(order + "I", parts[0][1])[0]
     kind = flags & 0xFF
-    dims = struct.unpack(f"{order}{len(parts[1][1]) // 4}i", parts[1][1])
+    code = "i" if parts[1][0] == MI_INT32 else "I"   # other writers store them unsigned
+    dims = struct.unpack(f"{order}{len(parts[1][1]) // 4}{code}", parts[1][1])
     if min(dims) < 0:
         raise MatStructureError(f"the array at byte {where} has a negative dimension {dims}")
     count = math.prod(dims)
@@ -126,9 +135,11 @@ def _array(buf: memoryview, order: str, where: int, depth: int) -> None:
             _array(data, order, at, depth + 1)
         return
     if kind == CHAR:
-        width = CHARACTER_WIDTHS.get(rest[0][0] if len(rest) == 1 else 0)
-        if count and (len(rest) != 1 or rest[0][0] not in CHARACTER_TYPES
-                      or (width and len(rest[0][1]) != width * count)):
+        kind_, size = (rest[0][0], len(rest[0][1])) if len(rest) == 1 else (0, 0)
+        width = CHARACTER_WIDTHS.get(kind_)
+        if count and (len(rest) != 1 or kind_ not in CHARACTER_TYPES
+                      or (width and size != width * count)
+                      or (kind_ == MI_UTF8 and not count <= size <= 4 * count)):
             raise MatStructureError(f"the character array at byte {where} does not hold its "
                                     f"{count} characters")
         return
@@ -146,15 +157,18 @@ def _array(buf: memoryview, order: str, where: int, depth: int) -> None:
 
 
 def _inflate(data: memoryview, where: int) -> bytes:
+    from .resources import memory_limit
+
+    most = min(MAX_INFLATED, memory_limit())
     inflater = zlib.decompressobj()
     try:
-        out = inflater.decompress(data, MAX_INFLATED)
+        out = inflater.decompress(data, most)
     except zlib.error as exc:
         raise MatStructureError(f"the compressed element at byte {where} does not inflate: "
                                 f"{exc}") from None
     if inflater.unconsumed_tail:
         raise MatStructureError(f"the compressed element at byte {where} inflates beyond "
-                                f"{MAX_INFLATED} bytes")
+                                f"{most} bytes")
     return out
 
 

@@ -196,7 +196,8 @@ def _march_all(model, std, method, modes, f0, c, mu, t, held, xs0, U, E, F, note
         if len(t) > 1:
             warn_if_inaccurate(model.name, float(np.diff(t).max()), std.A,
                                "use shorter steps between the sample times, or "
-                               "method='modal' (exact per mode)")
+                               "method='modal' (exact per mode)",
+                               "the longest exact step between two sample times, h")
         xs = _march(std.A, ((0, n),), std.B, f0, c, mu, t, held, xs0).real
         notes.append("matrix exponential of the augmented matrix [[A, B, f0], [0, 0, 0]] h")
     else:

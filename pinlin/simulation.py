@@ -13,9 +13,11 @@ decay rate of the ODE's Jacobian at the initial state (central differences; the 
 there), the problem is stiff when rho T > :data:`STIFF_LIMIT` for the horizon T: an explicit
 method would spend more than ~STIFF_LIMIT / 5 steps on stability alone (|h lambda| < ~5 for
 DOP853), steps an implicit one does not need, and when rho exceeds :data:`STIFF_RATIO` times
-the fastest rate that every method must resolve (an oscillation's, or a growing motion's: a
-pendulum near upright has lambda = +-3.13 1/s, whose decay half is no reason for an implicit
-method; with rho T alone, 400 s of it took Radau 41 s against DOP853's 1 s). Stiff:
+the rate of the motion that every method must resolve: each mode's oscillation or growth
+over the part of the horizon it lasts (a pendulum near upright has lambda = +-3.13 1/s,
+whose decay half is no reason for an implicit method: with rho T alone, 400 s of it took
+Radau 41 s against DOP853's 1 s; a fast oscillation damped away within milliseconds is,
+and leaves only stability to limit an explicit method's steps). Stiff:
 ``"Radau"`` (implicit, order 5); else ``"DOP853"`` (explicit, order 8). Undamped fast
 oscillations do not count: every method must resolve them. A horizon of more than
 :data:`MAX_CYCLES` periods of the fastest oscillation or growth is refused.
@@ -44,10 +46,12 @@ from .system import System
 
 #: rho * T above this is stiff (rho: fastest decay rate [1/s], T: horizon [s]) ...
 STIFF_LIMIT = 1e3
-#: ... when rho also exceeds this many times the fastest rate every method must resolve
-#: (oscillation or growth): below, an explicit method's steps for accuracy (~10 a period)
-#: already keep it stable (|h lambda| < ~5).
+#: ... when rho also exceeds this many times the rate of the motion every method must
+#: resolve (oscillations and growth, each over the part of the horizon it lasts): below, an
+#: explicit method's steps for accuracy (~10 a period) already keep it stable.
 STIFF_RATIO = 10.0
+#: A mode decaying at d [1/s] lasts PERSIST / d (e^-50 ~ 2e-22 of itself: gone to rounding).
+PERSIST = 50.0
 METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
 
 
@@ -151,8 +155,9 @@ class _Inputs:
         return self.u0 + du
 
 
-#: Periods of the fastest oscillation or growth (max(|Im lambda|, Re lambda) T / 2 pi of the
-#: Jacobian at the start) beyond which a horizon is refused: any integrator, implicit too,
+#: Periods of the fastest oscillation or growth (max(|Im lambda|, Re lambda) / 2 pi of the
+#: Jacobian at the start, times the part of the horizon T the mode lasts, min(T,
+#: PERSIST / decay rate)) beyond which a horizon is refused: any integrator, implicit too,
 #: takes ~10 steps a period to follow it, so 1e5 periods are ~1e6 steps of a Python
 #: right-hand side (minutes); beyond, a typo in t (1e9 s for 1e-9) would run for days.
 MAX_CYCLES = 1e5
@@ -172,26 +177,32 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
         J[:, k] = (dyn.rhs(t0, s0 + e, u) - dyn.rhs(t0, s0 - e, u)) / (2 * h)
     dyn.state(s0)  # back to the initial configuration (mechanisms warm-start from it)
     lam = np.linalg.eigvals(J) if n else np.zeros(0)
-    # The rates any method must resolve: oscillations, and growth (a motion that leaves an
-    # unstable point, a pendulum near upright, turns into swings of about that rate).
-    omega = float(np.abs(lam.imag).max(initial=0.0))
-    growth = max(0.0, float(lam.real.max(initial=0.0)))
-    rate = max(omega, growth)
-    cycles = rate * T / (2.0 * np.pi)
+    # The motion every method must resolve, mode by mode: its oscillation or growth rate,
+    # over the part of the horizon it lasts (a mode decaying at d fades below e^-PERSIST
+    # after PERSIST / d; a growing one, a pendulum near upright, turns into swings of about
+    # its rate and lasts). cycles: the most periods any mode asks for.
+    decay = -lam.real
+    rates = np.maximum(np.abs(lam.imag), np.maximum(lam.real, 0.0))
+    with np.errstate(divide="ignore"):
+        lasts = np.where(decay > 0.0, np.minimum(T, PERSIST / np.where(decay > 0, decay, 1.0)),
+                         T)
+    cycles = float((rates * lasts).max(initial=0.0)) / (2.0 * np.pi)
     if not cycles <= MAX_CYCLES:
-        what = "oscillation" if omega >= growth else "growing motion"
+        k = int(np.argmax(rates * lasts))
+        what = "oscillation" if abs(lam[k].imag) >= lam[k].real else "growing motion"
         raise ArgumentError("t", f"the horizon {T:.3g} s spans {cycles:.3g} periods of the "
-                                 f"fastest {what} ({rate:.3g} rad/s at the start): more than "
+                                 f"fastest {what} ({rates[k]:.3g} rad/s at the start): more than "
                                  f"{MAX_CYCLES:g}, which an integrator must resolve step by "
                                  "step (~10 steps a period); simulate a shorter horizon")
-    rho = max(0.0, float(-lam.real.min(initial=0.0)))
+    rho = max(0.0, float(decay.max(initial=0.0)))
     stiff = rho * T
-    if stiff > STIFF_LIMIT and rho > STIFF_RATIO * rate:
+    resolve = 2.0 * np.pi * cycles / T if T > 0 else 0.0   # the rate those periods average
+    if stiff > STIFF_LIMIT and rho > STIFF_RATIO * resolve:
         method, verdict = "Radau", f"> {STIFF_LIMIT:g} and {rho:.3g} > {STIFF_RATIO:g} x "
     else:
         method, verdict = "DOP853", f"<= {STIFF_LIMIT:g} or {rho:.3g} <= {STIFF_RATIO:g} x "
     why = (f"fastest decay rate {rho:.3g} 1/s times the horizon {T:.3g} s = {stiff:.3g} "
-           f"{verdict}the fastest rate to resolve ({rate:.3g} 1/s): "
+           f"{verdict}the rate of the motion to resolve ({resolve:.3g} 1/s): "
            f"{'stiff' if method == 'Radau' else 'not stiff'}")
     return method, stiff, why
 

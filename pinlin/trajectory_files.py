@@ -162,11 +162,11 @@ def csv_location(path: str | Path, system: System, argument: str, row: int,
 
 
 def _csv_fields(path: Path, number: int, line: str) -> list[str]:
-    """The fields of line ``number`` of a states CSV file. Each line is one record: a quoted
-    field that runs on to the next line (no number does) or one beyond the csv module's field
-    limit is refused, naming the line."""
+    """The fields of line ``number`` of a states CSV file. Each line is one record (a quoted
+    field that runs on to the next line, which no number does, leaves both lines with too few
+    values); a field beyond the csv module's limit is refused, naming the line."""
     try:
-        return next(csv.reader([line], strict=True))
+        return next(csv.reader([line]))
     except csv.Error as exc:
         raise ModelFileError(path, f"line {number}: not a line of CSV values: {exc}") from None
 

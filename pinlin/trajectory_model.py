@@ -122,7 +122,7 @@ class TrajectoryModel:
         names = {}
         for key in ("state_names", "input_names", "output_names"):
             # as a LinearModel's: distinct, non-blank, no control characters (at(k) makes one)
-            names[key] = _names(key, getattr(self, key), f"trajectory model '{self.name}'")
+            names[key] = _names(key, getattr(self, key), str(self.name))
             object.__setattr__(self, key, names[key])
         n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
         N = np.shape(self.A)[0] if np.ndim(self.A) == 3 else -1

@@ -8,6 +8,8 @@ discretizations against their definitions."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -205,6 +207,17 @@ def test_discretize_refuses_what_it_cannot_do():
     # (the undamped pendulum over 1e15 s: |eig(A_d)| came back 0.55 for 1): refused.
     with pytest.raises(pinlin.ModelError, match=r"dt = 1e\+15 s .*no correct digit"):
         model.discretize(1e15)
+    # ... unless every mode decays below rounding within the step: a damped pendulum
+    # (lambda = -1 +- 2.97i) over 1e15 s is the steady state, A_d = 0, B_d = -A^-1 B,
+    # computed to working precision, without a word.
+    damped = pinlin.LinearModel(A=[[0.0, 1.0], [-9.81, -2.0]], B=[[0.0], [1.0]], C=np.eye(2),
+                                D=np.zeros((2, 1)), state_names=["q:x", "v:x"],
+                                input_names=["u:x"], output_names=["y1", "y2"], name="damped")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        held = damped.discretize(1e15)
+    assert np.abs(held.A).max() == 0.0
+    np.testing.assert_allclose(held.B, [[1 / 9.81], [0.0]], rtol=1e-14, atol=1e-15)
     for dt in (5e-324, np.nextafter(np.finfo(float).tiny, 0)):   # subnormal: few bits
         with pytest.raises(pinlin.ArgumentError, match="argument 'dt'.*subnormal"):
             model.discretize(dt)

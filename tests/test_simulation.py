@@ -309,6 +309,18 @@ def test_a_saddle_is_not_stiff_and_its_horizon_counts_its_growth():
         pinlin.simulate("pendulum", [0.0, 1e7], dx0=[3.1, 0.0])
 
 
+def test_a_fast_oscillation_damped_away_is_stiff():
+    """A pendulum on a stiff, strongly damped servo (lambda = -6993 +- 7141i 1/s) over 20 s:
+    its oscillation is gone within 7 ms, after which only stability limits an explicit
+    method's steps: Radau (0.7 s), where counting that oscillation over the whole horizon
+    chose DOP853 (19 s)."""
+    scene = pinlin.Scene.from_urdf(URDF_DIR / "pendulum.urdf", effects={
+        "gravity": [0, 0, -G], "damping": {"hinge": 14000.0},
+        "springs": {"hinge": {"stiffness": 1e8}}})
+    sim = pinlin.simulate(scene, np.linspace(0.0, 20.0, 6), dx0=[0.01, 0.0])
+    assert sim.info["method"] == "Radau", sim.info
+
+
 def test_outputs_and_names():
     sim = pinlin.simulate("four_bar", [0.0, 0.1], dx0=[0.1, 0.0])
     model = pinlin.linearize("four_bar")
