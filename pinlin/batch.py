@@ -38,6 +38,7 @@ file): the structural zeros of A and B are not written again.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -50,6 +51,7 @@ from .conditioning import WARN_CONDITION, trace_condition, warn_if_ill_condition
 from .coordinates import FREE_FLYER, SPHERICAL
 from .exceptions import ModelError, PinlinError
 from .mass_bound import diagonal_bound, may_warn, suspect
+from .point_warnings import PointWarnings
 from .system import System
 
 #: The per-point second-order stacks of ``second_order=True`` (Bu = S is constant).
@@ -385,26 +387,39 @@ def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, h
     """:func:`pinlin.linearize` at each point of lo:hi (it checks M^-1 and finiteness)."""
     from .linearization import linearize
 
+    step = options.step if options.derivatives != "analytic" else None
+    warned = PointWarnings()
+    try:
+        for k in range(lo, hi):
+            _point_model(system, arrays, k, options, step, linearize, warned)
+    finally:   # the warnings of the points done, raised once per kind, naming the first
+        warned.raise_all(lo, hi)
+
+
+def _point_model(system: System, arrays: Mapping[str, np.ndarray], k: int, options: Options,
+                 step: Any, linearize: Any, warned: PointWarnings) -> None:
+    """Point k of :func:`_fill_per_point`; its warnings are counted into ``warned``."""
     Q, V, U = arrays["q"], arrays["v"], arrays["u"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
     C, y = arrays.get("C"), arrays.get("y")
-    step = options.step if options.derivatives != "analytic" else None
-    for k in range(lo, hi):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         try:
             model = linearize(system, q=Q[k], v=V[k], u=U[k], derivatives=options.derivatives,
                               step=step, estimate_error=False)
         except PinlinError as exc:
             raise at_point(exc, k) from None
-        A[k] = model.A
-        B[k] = model.B
-        if options.second_order:
-            for key in SECOND_ORDER:
-                arrays[key][k] = getattr(model, key)
-        f0[k] = 0.0 if model.f0 is None else model.f0   # (reused arrays: every entry written)
-        if y is not None:
-            y[k] = model.operating_point.y
-        if C is not None:
-            C[k] = model.C
+    warned.add(k, caught)
+    A[k] = model.A
+    B[k] = model.B
+    if options.second_order:
+        for key in SECOND_ORDER:
+            arrays[key][k] = getattr(model, key)
+    f0[k] = 0.0 if model.f0 is None else model.f0   # (reused arrays: every entry written)
+    if y is not None:
+        y[k] = model.operating_point.y
+    if C is not None:
+        C[k] = model.C
 
 
 class _State(NamedTuple):

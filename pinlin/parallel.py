@@ -37,11 +37,14 @@ import hashlib
 import math
 import mmap
 import multiprocessing as mp
+import multiprocessing.util as mp_util
 import os
 import pickle
+import signal
 import sys
 import tempfile
 import threading
+import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
@@ -54,6 +57,7 @@ import numpy as np
 from . import exceptions
 from .batch import Layout, Options, fill
 from .exceptions import ArgumentError, PinlinError
+from .point_warnings import recording, shift, warn_again
 from .scene import Scene
 from .system import System
 
@@ -65,6 +69,10 @@ TASKS_PER_WORKER = 4
 EXECUTOR_TASKS, MIN_CHUNK = 16, 16
 #: Folder of the shared segments, when it exists and has room.
 SHM_FOLDER = "/dev/shm"
+#: Start of a segment's file name; the creator's pid follows (:func:`_remove_orphans`).
+SEGMENT_PREFIX = "pinlin-trajectory-"
+#: How often a worker checks that its parent still runs [s].
+PARENT_POLL = 0.5
 
 _scenes: OrderedDict[str, Scene] = OrderedDict()
 _scenes_lock = threading.Lock()
@@ -79,9 +87,15 @@ _pools_lock = threading.Lock()
 
 def share(scene: Scene) -> tuple[bytes, str]:
     """The pickled scene and its key; the scene (with its built system) enters this process's
-    cache, so that forked workers inherit it built."""
+    cache, so that forked workers inherit it built. The key covers the URDF's content too:
+    the pickle holds its path, and a URDF rewritten between two calls (a mass changed) gave
+    the second call the first model from workers that had built it."""
     blob = pickle.dumps(scene, protocol=pickle.HIGHEST_PROTOCOL)
-    key = hashlib.sha256(blob).hexdigest()
+    digest = hashlib.sha256(blob)
+    if scene.urdf is not None:
+        with contextlib.suppress(OSError):
+            digest.update(scene.urdf.read_bytes())
+    key = digest.hexdigest()
     _remember(key, scene)
     return blob, key
 
@@ -111,17 +125,25 @@ def cached_system(blob: bytes, key: str) -> System:
 # constructor fields, which pickle cannot restore.
 
 
-def _portable(exc: PinlinError) -> tuple[str, str]:
-    return type(exc).__name__, str(exc)
+def _portable(exc: PinlinError) -> tuple[str, str, dict[str, Any]]:
+    """(class name, message, fields): the fields (a residual, names) where they pickle."""
+    fields = dict(exc.__dict__)
+    try:
+        pickle.dumps(fields)
+    except Exception:  # noqa: BLE001 (any field that does not pickle: none are sent)
+        fields = {}
+    return type(exc).__name__, str(exc), fields
 
 
-def _rebuild(error: tuple[str, str]) -> PinlinError:
-    name, message = error
+def _rebuild(error: tuple) -> PinlinError:
+    name, message = error[0], error[1]
     cls = getattr(exceptions, name, PinlinError)
     if not (isinstance(cls, type) and issubclass(cls, PinlinError)):
         cls = PinlinError
     exc = cls.__new__(cls)
     Exception.__init__(exc, message)
+    if len(error) > 2:
+        exc.__dict__.update(error[2])
     return exc
 
 
@@ -139,8 +161,9 @@ class _Segment:
 
     def __init__(self, size: int) -> None:
         folder = SHM_FOLDER if _room(SHM_FOLDER, size) else tempfile.gettempdir()
-        fd, self.path = tempfile.mkstemp(prefix="pinlin-trajectory-", suffix=".bin",
-                                         dir=folder)
+        _remove_orphans(folder)
+        fd, self.path = tempfile.mkstemp(prefix=f"{SEGMENT_PREFIX}{os.getpid()}-",
+                                         suffix=".bin", dir=folder)
         try:
             os.ftruncate(fd, size)
             self.map = mmap.mmap(fd, size)
@@ -156,6 +179,34 @@ class _Segment:
             os.unlink(self.path)
 
 
+def _remove_orphans(folder: str) -> None:
+    """Remove the segments that processes which no longer run left in ``folder`` (a caller
+    killed by a signal, SIGTERM or SIGKILL, runs no cleanup: its segment stayed, 16 MB for
+    8000 ur5 points). The segment's name carries its creator's pid."""
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return
+    for name in names:
+        if not name.startswith(SEGMENT_PREFIX):
+            continue
+        pid = name[len(SEGMENT_PREFIX):].partition("-")[0]
+        if not pid.isdigit() or _alive(int(pid)):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(os.path.join(folder, name))
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:   # another user's process (EPERM): alive, and its file is not ours
+        return True
+    return True
+
+
 def _room(folder: str, size: int) -> bool:
     try:
         stat = os.statvfs(folder)
@@ -165,44 +216,89 @@ def _room(folder: str, size: int) -> bool:
 
 
 def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, lo: int,
-                  hi: int, options: Options) -> tuple[str, str] | None:
-    """In a worker: fill points lo:hi of the segment at ``path``; an error comes back as
-    (class name, message)."""
+                  hi: int, options: Options) -> tuple[tuple | None, list]:
+    """In a worker: fill points lo:hi of the segment at ``path``; returns (the error as
+    :func:`_portable` gives it, or None; the warnings raised)."""
+    recorded: list = []
     try:
         system = cached_system(blob, key)
         with open(path, "r+b") as fh:
             segment = mmap.mmap(fh.fileno(), size)
         try:
             arrays = layout.views(segment)
-            fill(system, arrays, lo, hi, options)
+            recorded = recording(lambda: fill(system, arrays, lo, hi, options))
         finally:
             arrays = None  # the views go before the map closes
             segment.close()
     except PinlinError as exc:
-        return _portable(exc)
-    return None
+        return _portable(exc), recorded
+    return None, recorded
+
+
+def _worker_start() -> None:
+    """In each worker as it starts: Ctrl-C is the caller's to handle (a second one during
+    the pool's shutdown left the caller waiting on workers forever), and the worker ends
+    when its parent does (a caller killed by SIGTERM or ended by os._exit left its workers
+    waiting forever)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="pinlin-parent-watch", daemon=True).start()
 
 
 def _start_method() -> str:
+    """"fork" where that is safe: Linux, and no Python thread running but the main one and
+    those of pinlin's own (stopped) pools; else "forkserver" (or "spawn")."""
     methods = mp.get_all_start_methods()
-    if "fork" in methods and sys.platform.startswith("linux") and \
-            threading.active_count() == 1:
+    ours = {t for pool in _pools.values() for t in _pool_threads(pool)}
+    others = [t for t in threading.enumerate()
+              if t is not threading.main_thread() and t not in ours and t.is_alive()]
+    if "fork" in methods and sys.platform.startswith("linux") and not others:
         return "fork"
     return "forkserver" if "forkserver" in methods else "spawn"
 
 
+def _pool_threads(pool: ProcessPoolExecutor) -> list[threading.Thread]:
+    """The threads a ProcessPoolExecutor runs in the caller (its manager, its queue's
+    feeder): they are not the caller's, and forking beside them is as safe as before them."""
+    threads = [getattr(pool, "_executor_manager_thread", None),
+               getattr(getattr(pool, "_call_queue", None), "_thread", None)]
+    return [t for t in threads if isinstance(t, threading.Thread)]
+
+
 def _pool(workers: int) -> ProcessPoolExecutor:
-    """The persistent pool of ``workers`` processes (started on first use)."""
+    """The persistent pool of ``workers`` processes (started on first use; one pool at a
+    time: a call with another number of workers replaces it, after its work is done)."""
     with _pools_lock:
         pool = _pools.get(workers)
         if pool is None:
+            for size in list(_pools):
+                _pools.pop(size).shutdown(wait=True)
             method = _start_method()
             context = mp.get_context(method)
             if method == "forkserver":
                 context.set_forkserver_preload(["pinlin.parallel"])
-            pool = ProcessPoolExecutor(workers, mp_context=context)
+            pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_start)
             _pools[workers] = pool
+            _stop_at_exit()
         return pool
+
+
+_finalizer: Any = None
+
+
+def _stop_at_exit() -> None:
+    """Stop the pool as a process that uses it ends, before multiprocessing waits for that
+    process's children: inside a multiprocessing child (a user's Process or pool worker), the
+    interpreter's own hook came after that wait, which then waited forever."""
+    global _finalizer
+    if _finalizer is None:
+        _finalizer = mp_util.Finalize(None, shutdown, exitpriority=100)
 
 
 def shutdown() -> None:
@@ -214,11 +310,29 @@ def shutdown() -> None:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
+def _abandon(workers: int) -> None:
+    """Drop the pool of ``workers`` processes and end them now (after an interrupt: their
+    tasks are of no use to anyone)."""
+    with _pools_lock:
+        pool = _pools.pop(workers, None)
+    if pool is None:
+        return
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.terminate()
+
+
 def run_processes(system: System, layout: Layout, inputs: Mapping[str, np.ndarray],
                   options: Options, workers: int, chunk: int | None,
                   progress: Callable[[int, int], None] | None) -> dict[str, np.ndarray]:
     """Fill the stack with ``workers`` processes on one shared segment; the returned arrays
     are views of it. ``inputs``: the arrays named by ``layout.inputs`` (q, v, u, ...)."""
+    if mp.current_process().daemon:
+        raise ArgumentError("workers", f"workers={workers} from a daemonic process (a worker of "
+                                       "a multiprocessing Pool), which may not start "
+                                       "processes of its own; use workers=1 there")
     N = layout.points
     _, size = layout.offsets()
     chunk = chunk or max(MIN_CHUNK, math.ceil(N / (TASKS_PER_WORKER * workers)))
@@ -231,11 +345,17 @@ def run_processes(system: System, layout: Layout, inputs: Mapping[str, np.ndarra
         try:
             _run_pool(_pool(workers), blob, key, segment, layout, options, chunk, progress)
         except BrokenProcessPool:  # a worker died (killed, out of memory): one fresh try
-            with _pools_lock:
-                broken = _pools.pop(workers, None)
-            if broken is not None:
-                broken.shutdown(wait=False, cancel_futures=True)
-            _run_pool(_pool(workers), blob, key, segment, layout, options, chunk, progress)
+            _abandon(workers)
+            try:
+                _run_pool(_pool(workers), blob, key, segment, layout, options, chunk,
+                          progress)
+            except BrokenProcessPool as exc:
+                _abandon(workers)
+                raise PinlinError(f"the worker processes died twice ({exc}): killed, or out "
+                                  "of memory? Run with fewer workers, or workers=1") from None
+        except (KeyboardInterrupt, SystemExit):
+            _abandon(workers)
+            raise
     finally:
         segment.unlink()
     return arrays
@@ -247,12 +367,13 @@ def _run_pool(pool: ProcessPoolExecutor, blob: bytes, key: str, segment: _Segmen
     N = layout.points
     futures = {pool.submit(_segment_task, blob, key, segment.path, segment.size, layout, lo,
                            hi, options): (lo, hi) for lo, hi in _chunks(N, chunk)}
-    _collect(futures, N, progress, lambda result, lo, hi: _raise_if(result))
+    _collect(futures, N, progress, lambda result, lo, hi: _raise_if(*result))
 
 
-def _raise_if(result: tuple[str, str] | None) -> None:
-    if result is not None:
-        raise _rebuild(result)
+def _raise_if(error: tuple | None, recorded: list) -> None:
+    warn_again(recorded)
+    if error is not None:
+        raise _rebuild(error)
 
 
 def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
@@ -294,14 +415,17 @@ def _chunk_task(blob: bytes, key: str, layout: Layout, inputs: dict[str, np.ndar
                 options: Options) -> dict[str, Any]:
     """On an executor's worker: the stacked arrays of one chunk (inputs not sent back), or
     ``{"error": (class name, message)}``."""
+    recorded: list = []
     try:
         system = cached_system(blob, key)
         points = inputs["q"].shape[0]
         arrays = {**layout.allocate(points), **inputs}
-        fill(system, arrays, 0, points, options)
+        recorded = recording(lambda: fill(system, arrays, 0, points, options))
     except PinlinError as exc:
-        return {"error": _portable(exc)}
-    return {k: val for k, val in arrays.items() if k not in layout.inputs}
+        return {"error": _portable(exc), "warnings": recorded}
+    out = {k: val for k, val in arrays.items() if k not in layout.inputs}
+    out["warnings"] = recorded
+    return out
 
 
 def run_executor(system: System, layout: Layout, inputs: Mapping[str, np.ndarray],
@@ -314,32 +438,29 @@ def run_executor(system: System, layout: Layout, inputs: Mapping[str, np.ndarray
     blob, key = share(system.scene)
     arrays = {**layout.allocate(), **{name: inputs[name] for name in layout.inputs}}
     part = replace(layout, points=0)  # the chunk's size comes with its rows
+    futures: dict[Future, tuple[int, int]] = {}
     try:
-        futures = {executor.submit(_chunk_task, blob, key, part,
-                                   {name: inputs[name][lo:hi] for name in layout.inputs},
-                                   options): (lo, hi) for lo, hi in _chunks(N, chunk)}
-    except RuntimeError as exc:   # "cannot schedule new futures after shutdown"
-        raise ArgumentError("executor", f"cannot take work: {exc}") from None
+        for lo, hi in _chunks(N, chunk):
+            futures[executor.submit(_chunk_task, blob, key, part,
+                                    {name: inputs[name][lo:hi] for name in layout.inputs},
+                                    options)] = (lo, hi)
+    except BaseException as exc:   # the chunks already out are of no use now
+        for future in futures:
+            future.cancel()
+        if isinstance(exc, RuntimeError):   # "cannot schedule new futures after shutdown"
+            raise ArgumentError("executor", f"cannot take work: {exc}") from None
+        raise
 
     def take(result: dict[str, Any], lo: int, hi: int) -> None:
+        warn_again(result.pop("warnings", []), lo)
         if "error" in result:
             error = result["error"]
-            raise _rebuild((error[0], _shift(error[1], lo)))
+            raise _rebuild((error[0], shift(error[1], lo), *error[2:]))
         for name, value in result.items():
             arrays[name][lo:hi] = value
 
     _collect(futures, N, progress, take)
     return arrays
-
-
-def _shift(message: str, lo: int) -> str:
-    """A chunk's "trajectory point k" as the whole trajectory's point lo + k."""
-    prefix = "trajectory point "
-    if message.startswith(prefix):
-        head, _, rest = message[len(prefix):].partition(":")
-        if head.isdigit():
-            return f"{prefix}{int(head) + lo}:{rest}"
-    return message
 
 
 __all__ = ["cached_system", "run_executor", "run_processes", "share", "shutdown"]

@@ -1,0 +1,203 @@
+"""Worker processes through their lives: a changed URDF, a caller that is itself a child
+process or is killed, interrupted calls, leftover segments, warnings raised in workers, and
+the start method and number of pools. Real processes, small trajectories."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pytest
+from conftest import REPO
+
+import pinlin
+from pinlin import parallel
+
+_PENDULUM = """<robot name="p">
+  <link name="base"/>
+  <link name="bob"><inertial><origin xyz="0 0 -1"/><mass value="{mass}"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+  <joint name="hinge" type="revolute"><parent link="base"/><child link="bob"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+</robot>
+"""
+
+
+def _states(N: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-1, 1, (N, 1)), rng.uniform(-1, 1, (N, 1)), rng.uniform(-1, 1, (N, 1))
+
+
+def _script(tmp_path, body: str) -> subprocess.CompletedProcess:
+    path = tmp_path / "run.py"
+    path.write_text(textwrap.dedent(body))
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    return subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=120, cwd=tmp_path, env=env)
+
+
+def test_a_urdf_rewritten_between_calls_is_rebuilt_in_the_workers(tmp_path):
+    """The workers keep built scenes keyed by the scene; a URDF whose mass changed between two
+    calls gave the second the first model (its pickle holds the path, not the file)."""
+    urdf = tmp_path / "p.urdf"
+    urdf.write_text(_PENDULUM.format(mass=1.0))
+    q, v, u = _states(40)
+    first = pinlin.linearize_trajectory(pinlin.Scene.from_urdf(urdf), q, v, u, workers=2)
+    urdf.write_text(_PENDULUM.format(mass=5.0))
+    scene = pinlin.Scene.from_urdf(urdf)
+    again = pinlin.linearize_trajectory(scene, q, v, u, workers=2)
+    serial = pinlin.linearize_trajectory(scene, q, v, u)
+    assert np.abs(serial.B - first.B).max() > 0.1      # the mass changed the model
+    np.testing.assert_array_equal(again.A, serial.A)
+    np.testing.assert_array_equal(again.B, serial.B)
+
+
+def test_one_pool_at_a_time_and_fork_beside_its_threads():
+    """A call with another number of workers replaces the pool (each size kept its own, 22
+    idle processes after five sizes); the pool's own threads (manager, queue feeder) do not
+    make the next pool forkserver, which re-ran unguarded scripts."""
+    q, v, u = _states(40)
+    for workers in (2, 3):
+        pinlin.linearize_trajectory("pendulum", q, v, u, workers=workers)
+        assert list(parallel._pools) == [workers]
+    if sys.platform.startswith("linux"):
+        assert parallel._start_method() == "fork"
+
+
+def test_workers_from_a_child_process_let_it_end(tmp_path):
+    """A multiprocessing child that used workers=2 printed its result and then waited
+    forever: the pool was stopped only after multiprocessing's wait for the child's
+    children."""
+    run = _script(tmp_path, """
+        import multiprocessing as mp
+        import numpy as np
+        import pinlin
+
+        def child():
+            q = np.zeros((40, 1))
+            pinlin.linearize_trajectory("pendulum", q, q, q, workers=2)
+            print("done", flush=True)
+
+        if __name__ == "__main__":
+            p = mp.get_context("fork").Process(target=child)
+            p.start()
+            p.join(60)
+            print("exit", p.exitcode, flush=True)
+    """)
+    assert run.stdout.split() == ["done", "exit", "0"], run.stdout + run.stderr
+
+
+def test_workers_end_with_their_caller(tmp_path):
+    """A caller that ends without cleanup (os._exit, or a signal's kill) left its workers
+    waiting forever; each now sees its parent gone and ends."""
+    run = _script(tmp_path, """
+        import os
+        import numpy as np
+        import pinlin
+        from pinlin import parallel
+
+        q = np.zeros((40, 1))
+        pinlin.linearize_trajectory("pendulum", q, q, q, workers=2)
+        pool = next(iter(parallel._pools.values()))
+        print(*pool._processes, flush=True)
+        os._exit(0)
+    """)
+    pids = [int(p) for p in run.stdout.split()]
+    assert len(pids) == 2, run.stdout + run.stderr
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and any(parallel._alive(p) for p in pids):
+        time.sleep(0.1)
+    assert not any(parallel._alive(p) for p in pids)
+
+
+def test_a_dead_callers_segment_is_removed_by_the_next_call(tmp_path):
+    """A caller killed by SIGTERM or SIGKILL leaves its shared segment (16 MB for 8000 ur5
+    points); the next call removes the segments whose creator no longer runs, and no
+    other."""
+    done = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    dead = int(done.stdout)
+    folder = parallel.SHM_FOLDER if os.path.isdir(parallel.SHM_FOLDER) else None
+    if folder is None:
+        pytest.skip("no /dev/shm")
+    orphan = os.path.join(folder, f"{parallel.SEGMENT_PREFIX}{dead}-abc.bin")
+    alive = os.path.join(folder, f"{parallel.SEGMENT_PREFIX}{os.getppid()}-abc.bin")
+    for path in (orphan, alive):
+        with open(path, "wb") as fh:
+            fh.write(b"x")
+    try:
+        q, v, u = _states(40)
+        pinlin.linearize_trajectory("pendulum", q, v, u, workers=2)
+        assert not os.path.exists(orphan) and os.path.exists(alive)
+    finally:
+        for path in (orphan, alive):
+            if os.path.exists(path):
+                os.unlink(path)
+
+
+_SINGULAR = """<robot name="sing">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0 0 0"/><mass value="0"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0 0 1"/><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize("how", ["serial", "workers", "executor"])
+def test_warnings_of_the_per_point_path_reach_the_caller_naming_the_point(tmp_path, how):
+    """A point mass on two joints, M singular at q2 = 0, with numerical derivatives (the
+    per-point path): points 3 and 5 near the singularity warn. In a worker process or on an
+    executor the warning stayed there; serially it named no point and came once per point.
+    Now once per chunk that met it, naming its first point (of the whole trajectory)."""
+    (tmp_path / "sing.urdf").write_text(_SINGULAR)
+    scene = pinlin.Scene.from_urdf(tmp_path / "sing.urdf")
+    q = np.tile([0.0, 0.5], (8, 1))
+    q[3, 1], q[5, 1] = 1e-7, 1e-7
+    kwargs = {"serial": {}, "workers": {"workers": 2, "chunk": 3},
+              "executor": {"executor": ProcessPoolExecutor(1), "chunk": 3}}[how]
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            pinlin.linearize_trajectory(scene, q, np.zeros((8, 2)), np.zeros((8, 2)),
+                                        derivatives="fd3", **kwargs)
+    finally:
+        if "executor" in kwargs:
+            kwargs["executor"].shutdown()
+    texts = [str(w.message) for w in caught if issubclass(w.category, pinlin.AccuracyWarning)]
+    assert texts and texts[0].startswith("trajectory point 3: "), texts
+    if how == "serial":
+        assert len(texts) == 1 and "1 later points" in texts[0], texts
+    else:   # chunks 3-5 and, for point 5... in the same chunk: one warning
+        assert all(t.startswith(("trajectory point 3: ", "trajectory point 5: "))
+                   for t in texts), texts
+
+
+def test_workers_from_a_daemonic_process_are_an_argument_error():
+    """A multiprocessing Pool's worker may not start processes (AssertionError from deep in
+    multiprocessing before)."""
+    import multiprocessing as mp
+
+    with mp.get_context("fork").Pool(1) as pool:
+        name, text = pool.apply(_in_pool_worker)
+    assert name == "ArgumentError" and "daemonic" in text, text
+
+
+def _in_pool_worker() -> tuple[str, str]:
+    q = np.zeros((40, 1))
+    try:
+        pinlin.linearize_trajectory("pendulum", q, q, q, workers=2)
+    except Exception as exc:  # noqa: BLE001
+        return type(exc).__name__, str(exc)
+    return "", ""
