@@ -7,7 +7,10 @@ live in a file on ``/dev/shm`` (POSIX shared memory; a temporary folder where th
 it is too small) that each worker maps, fills for its points and unmaps; nothing but the
 pickled scene and two indices travels per task, and the caller's arrays are the segment itself
 (no copy back). The segment's name is removed as soon as the work ends; its memory lives as
-long as the arrays. ``multiprocessing.shared_memory.SharedMemory`` is that same /dev/shm file,
+long as the arrays. A caller killed by a signal removes nothing: its segment's name carries its
+pid, and the next call removes the segments of processes that no longer run. Workers ignore
+Ctrl-C (the caller's to handle: an interrupted call ends its pool) and end when their parent
+does. ``multiprocessing.shared_memory.SharedMemory`` is that same /dev/shm file,
 but its ``close()`` refuses while numpy views exist and, in Python < 3.13, a worker that
 attaches one registers it with its resource tracker, which unlinks it when the worker exits;
 mapping the file directly has neither problem.
@@ -18,9 +21,10 @@ per 4 kB of a 2 MB page), which for Talos (65 kB of results a point) is as much 
 itself; two workers gain only where that cost does not dominate. A persistent shared arena
 reused across calls would remove it (not done).
 
-The pool is forked where that is safe (Linux, no other Python thread running when it starts):
-workers then start in milliseconds and inherit the caller's built systems. Otherwise it uses
-``forkserver`` (or ``spawn``), whose workers import pinlin once.
+The pool is forked where that is safe (Linux, no other Python thread running when it starts
+but those of pinlin's own pool): workers then start in milliseconds and inherit the caller's
+built systems. Otherwise it uses ``forkserver`` (or ``spawn``), whose workers import pinlin
+once. One pool runs at a time (a call with another number of workers replaces it).
 
 **Executors** (``executor=``; a Dask cluster's ``client.get_executor()``): chunks of points go
 out with the pickled scene; each worker process builds the scene's System once (a per-process
