@@ -355,8 +355,10 @@ def run_processes(system: System, layout: Layout, inputs: Mapping[str, np.ndarra
                           progress)
             except BrokenProcessPool as exc:
                 _abandon(workers)
-                raise PinlinError(f"the worker processes died twice ({exc}): killed, or out "
-                                  "of memory? Run with fewer workers, or workers=1") from None
+                raise PinlinError(f"the worker processes died twice ({exc}): killed, out "
+                                  "of memory, or started by a script without "
+                                  "'if __name__ == \"__main__\":' (workers that are not forked "
+                                  "import it)? Run with fewer workers, or workers=1") from None
         except (KeyboardInterrupt, SystemExit):
             _abandon(workers)
             raise
