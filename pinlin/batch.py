@@ -38,7 +38,6 @@ file): the structural zeros of A and B are not written again.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -51,7 +50,6 @@ from .conditioning import WARN_CONDITION, trace_condition, warn_if_ill_condition
 from .coordinates import FREE_FLYER, SPHERICAL
 from .exceptions import ModelError, PinlinError
 from .mass_bound import diagonal_bound, may_warn, suspect
-from .point_warnings import PointWarnings
 from .system import System
 
 #: The per-point second-order stacks of ``second_order=True`` (Bu = S is constant).
@@ -388,28 +386,22 @@ def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, h
     from .linearization import linearize
 
     step = options.step if options.derivatives != "analytic" else None
-    warned = PointWarnings()
-    try:
-        for k in range(lo, hi):
-            _point_model(system, arrays, k, options, step, linearize, warned)
-    finally:   # the warnings of the points done, raised once per kind, naming the first
-        warned.raise_all(lo, hi)
+    for k in range(lo, hi):
+        _point_model(system, arrays, k, options, step, linearize)
 
 
 def _point_model(system: System, arrays: Mapping[str, np.ndarray], k: int, options: Options,
-                 step: Any, linearize: Any, warned: PointWarnings) -> None:
-    """Point k of :func:`_fill_per_point`; its warnings are counted into ``warned``."""
+                 step: Any, linearize: Any) -> None:
+    """Point k of :func:`_fill_per_point` (its warnings are the single call's: a per-point
+    catch_warnings would swap the process's warning filters under other threads)."""
     Q, V, U = arrays["q"], arrays["v"], arrays["u"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
     C, y = arrays.get("C"), arrays.get("y")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            model = linearize(system, q=Q[k], v=V[k], u=U[k], derivatives=options.derivatives,
-                              step=step, estimate_error=False)
-        except PinlinError as exc:
-            raise at_point(exc, k) from None
-    warned.add(k, caught)
+    try:
+        model = linearize(system, q=Q[k], v=V[k], u=U[k], derivatives=options.derivatives,
+                          step=step, estimate_error=False)
+    except PinlinError as exc:
+        raise at_point(exc, k) from None
     A[k] = model.A
     B[k] = model.B
     if options.second_order:

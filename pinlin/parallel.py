@@ -7,8 +7,8 @@ live in a file on ``/dev/shm`` (POSIX shared memory; a temporary folder where th
 it is too small) that each worker maps, fills for its points and unmaps; nothing but the
 pickled scene and two indices travels per task, and the caller's arrays are the segment itself
 (no copy back). The segment's name is removed as soon as the work ends; its memory lives as
-long as the arrays. A caller killed by a signal removes nothing: its segment's name carries its
-pid, and the next call removes the segments of processes that no longer run. Workers ignore
+long as the arrays. A caller killed by a signal removes nothing: its segment is no longer
+locked, and the next call removes it. Workers ignore
 Ctrl-C (the caller's to handle: an interrupted call ends its pool) and end when their parent
 does. ``multiprocessing.shared_memory.SharedMemory`` is that same /dev/shm file,
 but its ``close()`` refuses while numpy views exist and, in Python < 3.13, a worker that
@@ -24,7 +24,7 @@ reused across calls would remove it (not done).
 The pool is forked where that is safe (Linux, no other Python thread running when it starts
 but those of pinlin's own pool): workers then start in milliseconds and inherit the caller's
 built systems. Otherwise it uses ``forkserver`` (or ``spawn``), whose workers import pinlin
-once. One pool runs at a time (a call with another number of workers replaces it).
+once.
 
 **Executors** (``executor=``; a Dask cluster's ``client.get_executor()``): chunks of points go
 out with the pickled scene; each worker process builds the scene's System once (a per-process
@@ -41,6 +41,7 @@ import hashlib
 import math
 import mmap
 import multiprocessing as mp
+import multiprocessing.connection as mp_connection
 import multiprocessing.util as mp_util
 import os
 import pickle
@@ -49,6 +50,7 @@ import sys
 import tempfile
 import threading
 import time
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
@@ -56,12 +58,17 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
 from typing import Any
 
+try:
+    import fcntl
+except ImportError:  # not POSIX: no locks, orphans are not removed
+    fcntl = None  # type: ignore[assignment]
+
 import numpy as np
 
 from . import exceptions
 from .batch import Layout, Options, fill
 from .exceptions import ArgumentError, PinlinError
-from .point_warnings import recording, shift, warn_again
+from .point_warnings import may_record, recording, shift, warn_again
 from .scene import Scene
 from .system import System
 
@@ -73,10 +80,10 @@ TASKS_PER_WORKER = 4
 EXECUTOR_TASKS, MIN_CHUNK = 16, 16
 #: Folder of the shared segments, when it exists and has room.
 SHM_FOLDER = "/dev/shm"
-#: Start of a segment's file name; the creator's pid follows (:func:`_remove_orphans`).
+#: Start of a segment's file name.
 SEGMENT_PREFIX = "pinlin-trajectory-"
-#: How often a worker checks that its parent still runs [s].
-PARENT_POLL = 0.5
+#: Age [s] below which an unlocked segment is not taken for an orphan (:func:`_remove_orphans`).
+ORPHAN_AGE = 60.0
 
 _scenes: OrderedDict[str, Scene] = OrderedDict()
 _scenes_lock = threading.Lock()
@@ -131,11 +138,13 @@ def cached_system(blob: bytes, key: str) -> System:
 
 def _portable(exc: PinlinError) -> tuple[str, str, dict[str, Any]]:
     """(class name, message, fields): the fields (a residual, names) where they pickle."""
-    fields = dict(exc.__dict__)
-    try:
-        pickle.dumps(fields)
-    except Exception:  # noqa: BLE001 (any field that does not pickle: none are sent)
-        fields = {}
+    fields = {}
+    for name, value in exc.__dict__.items():
+        try:
+            pickle.loads(pickle.dumps(value))
+        except Exception:  # noqa: BLE001 (a field that does not travel stays behind)
+            continue
+        fields[name] = value
     return type(exc).__name__, str(exc), fields
 
 
@@ -161,54 +170,62 @@ def _chunks(points: int, chunk: int) -> list[tuple[int, int]]:
 
 class _Segment:
     """A shared-memory file mapped here; removed by :meth:`unlink`, mapped until the arrays
-    that view it are gone."""
+    that view it are gone. Its creator holds a shared lock on it (``flock``) until then: a
+    segment nobody holds is an orphan (:func:`_remove_orphans`)."""
 
     def __init__(self, size: int) -> None:
         folder = SHM_FOLDER if _room(SHM_FOLDER, size) else tempfile.gettempdir()
         _remove_orphans(folder)
-        fd, self.path = tempfile.mkstemp(prefix=f"{SEGMENT_PREFIX}{os.getpid()}-",
-                                         suffix=".bin", dir=folder)
+        fd, self.path = tempfile.mkstemp(prefix=SEGMENT_PREFIX, suffix=".bin", dir=folder)
+        self.fd: int | None = fd
         try:
+            if fcntl is not None:
+                fcntl.flock(fd, fcntl.LOCK_SH)
             os.ftruncate(fd, size)
             self.map = mmap.mmap(fd, size)
         except BaseException:
-            os.close(fd)
             self.unlink()
             raise
-        os.close(fd)
         self.size = size
 
     def unlink(self) -> None:
         with contextlib.suppress(OSError):
             os.unlink(self.path)
+        if self.fd is not None:
+            os.close(self.fd)   # (the lock goes with it)
+            self.fd = None
 
 
 def _remove_orphans(folder: str) -> None:
-    """Remove the segments that processes which no longer run left in ``folder`` (a caller
-    killed by a signal, SIGTERM or SIGKILL, runs no cleanup: its segment stayed, 16 MB for
-    8000 ur5 points). The segment's name carries its creator's pid."""
+    """Remove the segments in ``folder`` that no process holds (a caller killed by a signal,
+    SIGTERM or SIGKILL, runs no cleanup: its segment stayed, 16 MB for 8000 ur5 points).
+    A segment in use is locked by its creator, whatever its PID namespace (a pid in the name
+    could not tell: another container sharing /dev/shm has other pids); one younger than
+    :data:`ORPHAN_AGE` is left alone (its creator may not have locked it yet). POSIX only."""
+    if fcntl is None:
+        return
     try:
         names = os.listdir(folder)
     except OSError:
         return
+    now = time.time()
     for name in names:
         if not name.startswith(SEGMENT_PREFIX):
             continue
-        pid = name[len(SEGMENT_PREFIX):].partition("-")[0]
-        if not pid.isdigit() or _alive(int(pid)):
+        path = os.path.join(folder, name)
+        try:
+            if now - os.stat(path).st_mtime < ORPHAN_AGE:
+                continue
+            fd = os.open(path, os.O_RDONLY)
+        except OSError:
             continue
-        with contextlib.suppress(OSError):
-            os.unlink(os.path.join(folder, name))
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:   # another user's process (EPERM): alive, and its file is not ours
-        return True
-    return True
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)   # fails while someone holds it
+            os.unlink(path)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
 
 
 def _room(folder: str, size: int) -> bool:
@@ -220,7 +237,7 @@ def _room(folder: str, size: int) -> bool:
 
 
 def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, lo: int,
-                  hi: int, options: Options) -> tuple[tuple | None, list]:
+                  hi: int, options: Options, caller: int) -> tuple[tuple | None, list]:
     """In a worker: fill points lo:hi of the segment at ``path``; returns (the error as
     :func:`_portable` gives it, or None; the warnings raised)."""
     recorded: list = []
@@ -230,12 +247,18 @@ def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, l
             segment = mmap.mmap(fh.fileno(), size)
         try:
             arrays = layout.views(segment)
-            recorded = recording(lambda: fill(system, arrays, lo, hi, options))
+            if may_record(caller):
+                recorded = recording(lambda: fill(system, arrays, lo, hi, options))
+            else:
+                fill(system, arrays, lo, hi, options)
         finally:
             arrays = None  # the views go before the map closes
             segment.close()
     except PinlinError as exc:
         return _portable(exc), recorded
+    except OSError as exc:   # the segment gone (removed by another process?)
+        return _portable(PinlinError(f"the shared segment {path} could not be opened: "
+                                     f"{exc.strerror or exc}")), recorded
     return None, recorded
 
 
@@ -243,13 +266,15 @@ def _worker_start() -> None:
     """In each worker as it starts: Ctrl-C is the caller's to handle (a second one during
     the pool's shutdown left the caller waiting on workers forever), and the worker ends
     when its parent does (a caller killed by SIGTERM or ended by os._exit left its workers
-    waiting forever)."""
+    waiting forever). The parent's sentinel tells (its pid would not: a forkserver worker's
+    parent is the fork server, which outlives the caller while workers hold its pipe)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    parent = os.getppid()
+    parent = mp.parent_process()
+    if parent is None:
+        return
 
     def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(PARENT_POLL)
+        mp_connection.wait([parent.sentinel])
         os._exit(1)
 
     threading.Thread(target=watch, name="pinlin-parent-watch", daemon=True).start()
@@ -259,7 +284,7 @@ def _start_method() -> str:
     """"fork" where that is safe: Linux, and no Python thread running but the main one and
     those of pinlin's own (stopped) pools; else "forkserver" (or "spawn")."""
     methods = mp.get_all_start_methods()
-    ours = {t for pool in _pools.values() for t in _pool_threads(pool)}
+    ours = {t for pool in (*_pools.values(), *_retired) for t in _pool_threads(pool)}
     others = [t for t in threading.enumerate()
               if t is not threading.main_thread() and t not in ours and t.is_alive()]
     if "fork" in methods and sys.platform.startswith("linux") and not others:
@@ -276,13 +301,10 @@ def _pool_threads(pool: ProcessPoolExecutor) -> list[threading.Thread]:
 
 
 def _pool(workers: int) -> ProcessPoolExecutor:
-    """The persistent pool of ``workers`` processes (started on first use; one pool at a
-    time: a call with another number of workers replaces it, after its work is done)."""
+    """The persistent pool of ``workers`` processes (started on first use)."""
     with _pools_lock:
         pool = _pools.get(workers)
         if pool is None:
-            for size in list(_pools):
-                _pools.pop(size).shutdown(wait=True)
             method = _start_method()
             context = mp.get_context(method)
             if method == "forkserver":
@@ -294,6 +316,23 @@ def _pool(workers: int) -> ProcessPoolExecutor:
 
 
 _finalizer: Any = None
+#: Pools given up (after an interrupt or a broken pool), whose threads may still run a moment.
+_retired: weakref.WeakSet = weakref.WeakSet()
+
+
+def _after_fork_in_child() -> None:
+    """A forked child starts with no pool (its parent's executors have no threads here) and
+    fresh locks (one held at the fork would never be released here)."""
+    global _pools_lock, _scenes_lock, _finalizer, _retired
+    _pools.clear()
+    _pools_lock = threading.Lock()
+    _scenes_lock = threading.Lock()
+    _finalizer = None
+    _retired = weakref.WeakSet()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
 
 
 def _stop_at_exit() -> None:
@@ -310,8 +349,8 @@ def shutdown() -> None:
     with _pools_lock:
         pools = list(_pools.values())
         _pools.clear()
-    for pool in pools:
-        pool.shutdown(wait=True, cancel_futures=True)
+    for pool in pools:   # (cancelling would leave another thread's call waiting forever)
+        pool.shutdown(wait=True)
 
 
 def _abandon(workers: int) -> None:
@@ -321,11 +360,12 @@ def _abandon(workers: int) -> None:
         pool = _pools.pop(workers, None)
     if pool is None:
         return
+    _retired.add(pool)   # its threads end soon; meanwhile they are not the caller's
     processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
+    for process in processes:   # first: the broken pool then fails what is pending itself
         with contextlib.suppress(Exception):
             process.terminate()
+    pool.shutdown(wait=False)
 
 
 def run_processes(system: System, layout: Layout, inputs: Mapping[str, np.ndarray],
@@ -372,7 +412,7 @@ def _run_pool(pool: ProcessPoolExecutor, blob: bytes, key: str, segment: _Segmen
               progress: Callable[[int, int], None] | None) -> None:
     N = layout.points
     futures = {pool.submit(_segment_task, blob, key, segment.path, segment.size, layout, lo,
-                           hi, options): (lo, hi) for lo, hi in _chunks(N, chunk)}
+                           hi, options, os.getpid()): (lo, hi) for lo, hi in _chunks(N, chunk)}
     _collect(futures, N, progress, lambda result, lo, hi: _raise_if(*result))
 
 
@@ -418,7 +458,7 @@ def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
 
 
 def _chunk_task(blob: bytes, key: str, layout: Layout, inputs: dict[str, np.ndarray],
-                options: Options) -> dict[str, Any]:
+                options: Options, caller: int) -> dict[str, Any]:
     """On an executor's worker: the stacked arrays of one chunk (inputs not sent back), or
     ``{"error": (class name, message)}``."""
     recorded: list = []
@@ -426,7 +466,10 @@ def _chunk_task(blob: bytes, key: str, layout: Layout, inputs: dict[str, np.ndar
         system = cached_system(blob, key)
         points = inputs["q"].shape[0]
         arrays = {**layout.allocate(points), **inputs}
-        recorded = recording(lambda: fill(system, arrays, 0, points, options))
+        if may_record(caller):
+            recorded = recording(lambda: fill(system, arrays, 0, points, options))
+        else:
+            fill(system, arrays, 0, points, options)
     except PinlinError as exc:
         return {"error": _portable(exc), "warnings": recorded}
     out = {k: val for k, val in arrays.items() if k not in layout.inputs}
@@ -449,7 +492,7 @@ def run_executor(system: System, layout: Layout, inputs: Mapping[str, np.ndarray
         for lo, hi in _chunks(N, chunk):
             futures[executor.submit(_chunk_task, blob, key, part,
                                     {name: inputs[name][lo:hi] for name in layout.inputs},
-                                    options)] = (lo, hi)
+                                    options, os.getpid())] = (lo, hi)
     except BaseException as exc:   # the chunks already out are of no use now
         for future in futures:
             future.cancel()

@@ -1,52 +1,37 @@
-"""Warnings of a trajectory's points: named by point, once per kind, and carried back from
-worker processes.
+"""Warnings of a trajectory's points, carried back from worker processes.
 
 The per-point path of :func:`pinlin.linearize_trajectory` (numerical derivatives, rotating
-scenes) runs :func:`pinlin.linearize` at each point, whose warnings said nothing of the point
-and came once per point; :class:`PointWarnings` counts them and raises each kind once,
-naming the first point and how many more. Raised in a worker process or on an executor's
-machine, a warning stayed there (the caller saw none): :func:`recording` collects them as
-(category name, message, condition) and :func:`warn_again` raises them in the caller.
+scenes) runs :func:`pinlin.linearize` at each point. Raised in a worker process, its warnings
+stayed there (the caller saw none): :func:`recording` collects them as (category name,
+message, condition) and :func:`warn_again` raises them in the caller. Recording swaps the
+process's warning filters (``warnings.catch_warnings``), which is safe only where no other
+thread runs: the main thread of a process that is not the caller's (:func:`may_record`);
+elsewhere (a thread pool, Dask's worker threads) the warnings are left as they are.
 """
 
 from __future__ import annotations
 
 import builtins
+import os
+import threading
 import warnings
 from collections.abc import Callable
 
+from . import exceptions
 from .conditioning import AccuracyWarning
 
 #: A recorded warning: (category name, message, the AccuracyWarning's condition or None).
 Recorded = tuple[str, str, float | None]
 
 
-class PointWarnings:
-    """The warnings of points lo:hi, by category: (first point, its warning, count)."""
-
-    def __init__(self) -> None:
-        self.seen: dict[type, tuple[int, Warning, int]] = {}
-
-    def add(self, k: int, caught: list[warnings.WarningMessage]) -> None:
-        """Count the warnings ``caught`` at point ``k``."""
-        for w in caught:
-            first, message, count = self.seen.get(w.category, (k, w.message, 0))
-            self.seen[w.category] = (first, message, count + 1)
-
-    def raise_all(self, lo: int, hi: int) -> None:
-        """Raise each kind once: "trajectory point k: <message> (n later points of points
-        lo-(hi-1) too)"."""
-        for category, (k, message, count) in self.seen.items():
-            more = f" ({count - 1} later points of points {lo}-{hi - 1} too)" if count > 1 \
-                else ""
-            text = f"trajectory point {k}: {message}{more}"
-            warnings.warn(AccuracyWarning(text, message.condition)
-                          if isinstance(message, AccuracyWarning) else category(text),
-                          stacklevel=5)
+def may_record(caller: int) -> bool:
+    """Whether this code runs in the main thread of a process other than ``caller`` (a pid),
+    where recording cannot disturb another thread's warnings."""
+    return os.getpid() != caller and threading.current_thread() is threading.main_thread()
 
 
 def recording(run: Callable[[], None]) -> list[Recorded]:
-    """Run ``run`` and return the warnings it raised."""
+    """Run ``run`` and return the warnings it raised (:func:`may_record` must hold)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         run()
@@ -63,7 +48,7 @@ def warn_again(recorded: list[Recorded], lo: int = 0) -> None:
             warnings.warn(AccuracyWarning(message, condition if condition is not None else 0.0),
                           stacklevel=5)
             continue
-        category = getattr(builtins, name, UserWarning)
+        category = getattr(exceptions, name, None) or getattr(builtins, name, UserWarning)
         if not (isinstance(category, type) and issubclass(category, Warning)):
             category = UserWarning
         warnings.warn(message, category, stacklevel=5)
@@ -79,4 +64,4 @@ def shift(message: str, lo: int) -> str:
     return message
 
 
-__all__ = ["PointWarnings", "Recorded", "recording", "shift", "warn_again"]
+__all__ = ["Recorded", "may_record", "recording", "shift", "warn_again"]
