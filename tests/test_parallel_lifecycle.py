@@ -15,6 +15,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pytest
 from conftest import REPO
+from test_trajectory import _SINGULAR
 
 import pinlin
 from pinlin import parallel
@@ -181,18 +182,6 @@ def test_an_orphaned_segment_is_removed_by_the_next_call():
                 os.unlink(path)
 
 
-_SINGULAR = """<robot name="sing">
-  <link name="base"/>
-  <link name="l1"><inertial><origin xyz="0 0 0"/><mass value="0"/>
-    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-  <link name="l2"><inertial><origin xyz="0 0 1"/><mass value="1"/>
-    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><axis xyz="1 0 0"/>
-    <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
-</robot>
-"""
 
 
 @pytest.mark.parametrize("how", ["serial", "workers", "executor"])
