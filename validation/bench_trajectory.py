@@ -341,23 +341,23 @@ def report(results: dict, args: argparse.Namespace) -> str:
     return "\n".join(lines)
 
 
-MECHANISM_NOTES = """(Before the stacked kernels: 22x and 41x.) The open
-chain is one ``computeABADerivatives`` per point plus its outputs. A mechanism's point now
-costs, from Python, only Pinocchio calls: assembly (:mod:`pinlin.trajectory_assembly`: the
-closure check of all given points from frame positions, then per point Newton from a start
-predicted along the manifold's tangent and the previous step's curvature, 2 kinematics passes
-on a smooth sweep (one Newton step, then the check), each of one ``computeJointJacobians`` and a frame Jacobian per closure frame each, and a LAPACK ``gesv``
-per step; the frame Jacobians of its last pass are kept for the model), then ``crba``,
-``nonLinearEffects`` and ``computeRNEADerivatives`` (:mod:`pinlin.formulations.moving_batch`;
-the output frames' Jacobians and positions are read from the data that last call leaves).
-Everything else runs on stacks of 64 points: the projection, gamma, Phi_qq[v, .],
-Phi_qq[a, .], the geometric stiffness and d gamma / dq *analytically* from the frame
-Jacobians (:mod:`pinlin.loop_kernels`; formerly 4 nv evaluations of gamma by five-point
-differences), the two KKT solves, R, W and A, B. What is left is mostly the serial assembly
-(about half of a point: 2 kinematics passes and their small numpy calls, about 10 us each for
-the delta's six closure frames, of which the Pinocchio calls are ~5 us: a frame Jacobian
-costs 0.4 us, so reading them from one ``data.J`` access would save little) and the numpy
-calls on small stacks; 2x looks out of reach from Python."""
+MECHANISM_NOTES = """(Before the stacked kernels: 22x and 41x.) The open chain is one
+``computeABADerivatives`` per point plus its outputs. A mechanism's point now costs, from
+Python, only Pinocchio calls: assembly (:mod:`pinlin.trajectory_assembly`: the closure check of
+all given points from frame positions, then per point Newton from a start predicted along the
+manifold's tangent and the previous step's curvature, 2 kinematics passes on a smooth sweep (one
+Newton step, then the check), each one ``computeJointJacobians`` and a frame Jacobian per
+closure frame, and a LAPACK ``gesv`` per step; the frame Jacobians of its last pass are kept for
+the model), then ``crba``, ``nonLinearEffects`` and ``computeRNEADerivatives``
+(:mod:`pinlin.formulations.moving_batch`; the output frames' Jacobians and positions are read
+from the data that last call leaves). Everything else runs on stacks of 64 points: the
+projection, gamma, Phi_qq[v, .], Phi_qq[a, .], the geometric stiffness and d gamma / dq
+*analytically* from the frame Jacobians (:mod:`pinlin.loop_kernels`; formerly 4 nv evaluations
+of gamma by five-point differences), the two KKT solves, R, W and A, B. What is left is mostly
+the serial assembly (about half of a point: 2 kinematics passes and their small numpy calls,
+about 10 us each for the delta's six closure frames, of which the Pinocchio calls are ~5 us: a
+frame Jacobian costs 0.4 us, so reading them from one ``data.J`` access would save little) and
+the numpy calls on small stacks; 2x looks out of reach from Python."""
 
 
 NOTES = """## Reading these figures
