@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import builtins
 import os
+import sys
 import threading
 import warnings
 from collections.abc import Callable
@@ -39,19 +40,34 @@ def recording(run: Callable[[], None]) -> list[Recorded]:
             for w in caught]
 
 
+_PACKAGE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _outside_level() -> int:
+    """The ``stacklevel`` that points :func:`warn_again`'s warnings at the first frame
+    outside pinlin (the caller's line, as the serial path's warnings do)."""
+    level, frame = 1, sys._getframe(1)
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 def warn_again(recorded: list[Recorded], lo: int = 0) -> None:
     """Raise here the warnings a worker recorded (an executor's chunk that starts at point
-    ``lo``: its "trajectory point k" becomes the trajectory's lo + k)."""
+    ``lo``: its "trajectory point k" becomes the trajectory's lo + k), at the caller's line."""
+    if not recorded:
+        return
+    level = _outside_level()
     for name, message, condition in recorded:
         message = shift(message, lo)
         if name == "AccuracyWarning":
             warnings.warn(AccuracyWarning(message, condition if condition is not None else 0.0),
-                          stacklevel=5)
+                          stacklevel=level)
             continue
         category = getattr(exceptions, name, None) or getattr(builtins, name, UserWarning)
         if not (isinstance(category, type) and issubclass(category, Warning)):
             category = UserWarning
-        warnings.warn(message, category, stacklevel=5)
+        warnings.warn(message, category, stacklevel=level)
 
 
 def shift(message: str, lo: int) -> str:
