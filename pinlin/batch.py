@@ -385,33 +385,26 @@ def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, h
     """:func:`pinlin.linearize` at each point of lo:hi (it checks M^-1 and finiteness)."""
     from .linearization import linearize
 
-    step = options.step if options.derivatives != "analytic" else None
-    for k in range(lo, hi):
-        _point_model(system, arrays, k, options, step, linearize)
-
-
-def _point_model(system: System, arrays: Mapping[str, np.ndarray], k: int, options: Options,
-                 step: Any, linearize: Any) -> None:
-    """Point k of :func:`_fill_per_point` (its warnings are the single call's: a per-point
-    catch_warnings would swap the process's warning filters under other threads)."""
     Q, V, U = arrays["q"], arrays["v"], arrays["u"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
     C, y = arrays.get("C"), arrays.get("y")
-    try:
-        model = linearize(system, q=Q[k], v=V[k], u=U[k], derivatives=options.derivatives,
-                          step=step, estimate_error=False)
-    except PinlinError as exc:
-        raise at_point(exc, k) from None
-    A[k] = model.A
-    B[k] = model.B
-    if options.second_order:
-        for key in SECOND_ORDER:
-            arrays[key][k] = getattr(model, key)
-    f0[k] = 0.0 if model.f0 is None else model.f0   # (reused arrays: every entry written)
-    if y is not None:
-        y[k] = model.operating_point.y
-    if C is not None:
-        C[k] = model.C
+    step = options.step if options.derivatives != "analytic" else None
+    for k in range(lo, hi):
+        try:
+            model = linearize(system, q=Q[k], v=V[k], u=U[k], derivatives=options.derivatives,
+                              step=step, estimate_error=False)
+        except PinlinError as exc:
+            raise at_point(exc, k) from None
+        A[k] = model.A
+        B[k] = model.B
+        if options.second_order:
+            for key in SECOND_ORDER:
+                arrays[key][k] = getattr(model, key)
+        f0[k] = 0.0 if model.f0 is None else model.f0   # (reused arrays: every entry written)
+        if y is not None:
+            y[k] = model.operating_point.y
+        if C is not None:
+            C[k] = model.C
 
 
 class _State(NamedTuple):

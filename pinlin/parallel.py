@@ -68,7 +68,7 @@ import numpy as np
 from . import exceptions
 from .batch import Layout, Options, fill
 from .exceptions import ArgumentError, PinlinError
-from .point_warnings import may_record, recording, shift, warn_again
+from .point_warnings import recording, shift, warn_again
 from .scene import Scene
 from .system import System
 
@@ -148,15 +148,15 @@ def _portable(exc: PinlinError) -> tuple[str, str, dict[str, Any]]:
     return type(exc).__name__, str(exc), fields
 
 
-def _rebuild(error: tuple) -> PinlinError:
-    name, message = error[0], error[1]
+def _rebuild(error: tuple[str, str, dict[str, Any]]) -> PinlinError:
+    """The exception :func:`_portable` described."""
+    name, message, fields = error
     cls = getattr(exceptions, name, PinlinError)
     if not (isinstance(cls, type) and issubclass(cls, PinlinError)):
         cls = PinlinError
     exc = cls.__new__(cls)
     Exception.__init__(exc, message)
-    if len(error) > 2:
-        exc.__dict__.update(error[2])
+    exc.__dict__.update(fields)
     return exc
 
 
@@ -239,7 +239,8 @@ def _room(folder: str, size: int) -> bool:
 def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, lo: int,
                   hi: int, options: Options, caller: int) -> tuple[tuple | None, list]:
     """In a worker: fill points lo:hi of the segment at ``path``; returns (the error as
-    :func:`_portable` gives it, or None; the warnings raised)."""
+    :func:`_portable` gives it, or None; the warnings recorded, ``caller``: the caller's
+    pid)."""
     recorded: list = []
     try:
         system = cached_system(blob, key)
@@ -247,10 +248,7 @@ def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, l
             segment = mmap.mmap(fh.fileno(), size)
         try:
             arrays = layout.views(segment)
-            if may_record(caller):
-                recorded = recording(lambda: fill(system, arrays, lo, hi, options))
-            else:
-                fill(system, arrays, lo, hi, options)
+            recorded = recording(lambda: fill(system, arrays, lo, hi, options), caller)
         finally:
             arrays = None  # the views go before the map closes
             segment.close()
@@ -460,16 +458,14 @@ def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
 def _chunk_task(blob: bytes, key: str, layout: Layout, inputs: dict[str, np.ndarray],
                 options: Options, caller: int) -> dict[str, Any]:
     """On an executor's worker: the stacked arrays of one chunk (inputs not sent back), or
-    ``{"error": (class name, message)}``."""
+    ``{"error": (class name, message, fields)}``; with ``"warnings"``, those it recorded
+    (``caller``: the caller's pid)."""
     recorded: list = []
     try:
         system = cached_system(blob, key)
         points = inputs["q"].shape[0]
         arrays = {**layout.allocate(points), **inputs}
-        if may_record(caller):
-            recorded = recording(lambda: fill(system, arrays, 0, points, options))
-        else:
-            fill(system, arrays, 0, points, options)
+        recorded = recording(lambda: fill(system, arrays, 0, points, options), caller)
     except PinlinError as exc:
         return {"error": _portable(exc), "warnings": recorded}
     out = {k: val for k, val in arrays.items() if k not in layout.inputs}
@@ -504,7 +500,7 @@ def run_executor(system: System, layout: Layout, inputs: Mapping[str, np.ndarray
         warn_again(result.pop("warnings", []), lo)
         if "error" in result:
             error = result["error"]
-            raise _rebuild((error[0], shift(error[1], lo), *error[2:]))
+            raise _rebuild((error[0], shift(error[1], lo), error[2]))
         for name, value in result.items():
             arrays[name][lo:hi] = value
 

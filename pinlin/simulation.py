@@ -183,9 +183,7 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
     # its rate and lasts). cycles: the most periods any mode asks for.
     decay = -lam.real
     rates = np.maximum(np.abs(lam.imag), np.maximum(lam.real, 0.0))
-    with np.errstate(divide="ignore"):
-        lasts = np.where(decay > 0.0, np.minimum(T, PERSIST / np.where(decay > 0, decay, 1.0)),
-                         T)
+    lasts = np.where(decay > 0.0, np.minimum(T, PERSIST / np.where(decay > 0, decay, 1.0)), T)
     cycles = float((rates * lasts).max(initial=0.0)) / (2.0 * np.pi)
     if not cycles <= MAX_CYCLES:
         k = int(np.argmax(rates * lasts))

@@ -130,16 +130,11 @@ def close(system, plan: lk.ClosurePlan, Q: np.ndarray, q0: np.ndarray, rows: np.
         step[:] = back
         step[z] = 0.0
         Gr = evaluate.rows(J[k - 1])
-        if k >= 2:
-            past = pin.difference(model, out[k - 1], out[k - 2])
-            rhs = np.dot(Gr[:, z], np.stack([back[z], past[z]], axis=1))
-            _, _, x, info = lapack.dgesv(Gr[:, dep], rhs)
-            if info == 0:
-                step[dep] += x[:, 0] + curvature(back[z], past[z]) * (past[dep] + x[:, 1])
-        else:
-            _, _, x, info = lapack.dgesv(Gr[:, dep], np.dot(Gr[:, z], back[z]))
-            if info == 0:
-                step[dep] += x
+        past = pin.difference(model, out[k - 1], out[k - 2]) if k >= 2 else np.zeros(nv)
+        rhs = np.dot(Gr[:, z], np.stack([back[z], past[z]], axis=1))
+        _, _, x, info = lapack.dgesv(Gr[:, dep], rhs)
+        if info == 0:   # (no previous step at k = 1: past = 0, no curvature term)
+            step[dep] += x[:, 0] + curvature(back[z], past[z]) * (past[dep] + x[:, 1])
         solved = _newton(evaluate, model, pin.integrate(model, q, step), J[k], dep)
         if solved is None:  # as before: Newton with backtracking from the plain warm start
             step[:] = back
