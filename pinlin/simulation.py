@@ -32,7 +32,6 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-import scipy.integrate
 
 from .arrays import read_only, real_array, sample_times
 from .exceptions import ArgumentError, ModelError
@@ -209,6 +208,8 @@ def _integrate(dyn: Any, inputs: _Inputs, t: np.ndarray, s0: np.ndarray, method:
                rtol: float, atol: float) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """(q, v) at the times t, and the solver statistics. The solver is restarted (with its
     last step size) where the coordinates change (dyn.after_step) or a held input changes."""
+    import scipy.integrate  # here: it costs ~0.3 s to import, which only simulate pays
+
     solver_class = getattr(scipy.integrate, method)
     N = t.size
     q0, v0 = dyn.state(s0)

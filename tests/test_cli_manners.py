@@ -351,3 +351,21 @@ def test_symmetric_solver_refused_before_anything_is_printed(argv, capfd):
     code, out, err = run(capfd, "linearize", *argv)
     assert code == 2 and out == ""
     assert "symmetric (K, M) eigensolver does not apply" in one_error_line(err)
+
+
+# ------------------------------------------------------------------------------------------
+# Start-up
+
+def test_importing_pinlin_leaves_the_heavy_optional_modules_unloaded():
+    """Every command imports pinlin; what only some commands use is imported where it is used
+    (MuJoCo by validate and export, matplotlib by pictures, scipy.integrate by simulate,
+    scipy.optimize by nonlinear graphs, Dask by --dask): a few tenths of a second each."""
+    import subprocess
+    import sys
+
+    heavy = ("mujoco", "matplotlib", "scipy.integrate", "scipy.optimize", "dask")
+    code = ("import sys, pinlin, pinlin.cli; "
+            f"print(' '.join(m for m in {heavy!r} if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=REPO).stdout
+    assert out.split() == []

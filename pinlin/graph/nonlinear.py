@@ -39,12 +39,19 @@ from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import root
 
 from ..exceptions import ArgumentError
 from .excess import combine_excess, excess_groups
 from .matrix import matrix_method, state_space
 from .model import RANGE, VALUE_MAX, VALUE_MIN, Branch, GraphError, clip, real, show
+
+
+def _root(fun, x0: np.ndarray, **options):
+    """``scipy.optimize.root``, imported on first use (scipy.optimize costs ~0.1-0.2 s to
+    import, which every command would pay for the few graphs that are nonlinear)."""
+    from scipy.optimize import root
+
+    return root(fun, x0, **options)
 
 _REL_TOL = 1e-9      # |sigma_i| against the sum of its terms
 _STEP_TOL = 1e-8     # Newton step against the state's scale
@@ -231,14 +238,14 @@ class NonlinearGraph:
 
         if form.p:
             with np.errstate(all="ignore"):
-                sol = root(residual, np.zeros(len(form.p)), method="hybr")
+                sol = _root(residual, np.zeros(len(form.p)), method="hybr")
                 if not solved(sol):
                     # Far from zero (a 110 bar tank: hybr's first steps from 0 are too short):
                     # start where each link's relation puts its primary with the others at 0
                     # (exact when the links see only states and inputs).
                     start = -residual(np.zeros(len(form.p)))
                     start[[self.in_tree[k] for k in form.p]] = 0.0
-                    retry = root(residual, start, method="hybr")
+                    retry = _root(residual, start, method="hybr")
                     if solved(retry):
                         sol = retry
             if not solved(sol):
@@ -285,7 +292,7 @@ class NonlinearGraph:
         """x0 with sigma(x0, u) = 0, from ``guess`` (GraphError when none is found)."""
         try:
             with np.errstate(all="ignore"):
-                sol = root(lambda z: self.storage(z, u)[0], guess, method="hybr",
+                sol = _root(lambda z: self.storage(z, u)[0], guess, method="hybr",
                            options={"xtol": 1e-13})
         except GraphError as exc:
             raise GraphError(exc.source, exc.field, f"{exc.reason} (while searching for the "
