@@ -265,12 +265,16 @@ class _Checker:
             eig = np.sort(np.diag(inertia))
         else:
             eig = np.linalg.eigvalsh(inertia)
-        scale = max(1.0, float(np.abs(eig).max()))
-        if eig[0] < -1e-12 * scale:
+        # Relative to the link's own inertia (no floor: a millimetre link's moments are
+        # ~1e-12 kg*m^2, and an absolute 1e-12 let a negative one through).
+        scale = float(np.abs(eig).max())
+        if eig[0] < -1e-12 * scale:   # eigvalsh's rounding: ~eps * scale
             self.fail(f"link '{name}': inertia tensor is not positive semi-definite "
                       f"(principal moments {np.array2string(eig, precision=3)} kg*m^2)")
-        # Principal moments of a real body satisfy the triangle inequality.
-        if eig[2] > eig[0] + eig[1] + 1e-9 * scale:
+        # Principal moments of a real body satisfy the triangle inequality; 1e-6 of the
+        # largest admits moments printed to 7 significant digits (a float32's), a flat body's
+        # I3 = I1 + I2 among them.
+        if eig[2] > eig[0] + eig[1] + 1e-6 * scale:
             self.fail(f"link '{name}': principal moments {np.array2string(eig, precision=3)} "
                       "kg*m^2 violate the triangle inequality I3 <= I1 + I2 (no physical body "
                       "has them)")

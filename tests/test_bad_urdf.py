@@ -104,6 +104,15 @@ BAD_URDFS: dict[str, tuple[str, tuple[str, ...]]] = {
     "two_origins": (mutate(AXIS, f'<origin xyz="0 0 1"/><origin xyz="5 5 5"/>{AXIS}'),
                     ("joint 'hinge' has 2 <origin> elements", "use the first")),
     "two_axes": (mutate(AXIS, f'{AXIS}<axis xyz="1 0 0"/>'), ("joint 'hinge' has 2 <axis>",)),
+    # relative to the link's own size (an absolute floor let these through for small links)
+    "small_link_negative_moment": (
+        mutate('<inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>',
+               '<inertia ixx="-5e-13" ixy="0" ixz="0" iyy="1e-14" iyz="0" izz="1e-14"/>'),
+        ("link 'bob'", "not positive semi-definite")),
+    "small_link_moments_violate_triangle": (
+        mutate('<inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>',
+               '<inertia ixx="1e-13" ixy="0" ixz="0" iyy="1e-13" iyz="0" izz="5e-11"/>'),
+        ("link 'bob'", "triangle inequality")),
     "two_masses": (mutate('<mass value="1.0"/>', '<mass value="1.0"/><mass value="7.0"/>'),
                    ("link 'bob' <inertial> has 2 <mass> elements",)),
     "two_inertials": (mutate("</inertial>", '</inertial><inertial><mass value="5"/><inertia '
