@@ -9,11 +9,12 @@ independent (states then named ``q:root_joint[i]``). Redundant rows (a planar lo
 found by a column-pivoted QR of Phi_q^T and dropped.
 
 Many operating points (a gain schedule sweeping a crank): each new guess is solved by Newton
-from that guess, to max |Phi| <= :data:`ASSEMBLY_TOL` [m or rad], exactly as a single call
-would; a guess solved before comes back from the :class:`AssemblyCache` of the constraint set,
-bit for bit. The small dense solves call LAPACK directly (:func:`lstsq`, :func:`lstsq_rank`,
-:func:`pivoted_qr`, :func:`condition_2`): the same routines and tolerances as numpy's and
-scipy's wrappers, whose argument checks cost several times the factorization at these sizes.
+from that guess, to max |Phi| <= :data:`ASSEMBLY_TOL` (relative to the mechanism's size),
+exactly as a single call would; a guess solved before comes back from the
+:class:`AssemblyCache` of the constraint set, bit for bit. The small dense solves call LAPACK
+directly (:func:`lstsq`, :func:`lstsq_rank`, :func:`pivoted_qr`, :func:`condition_2`): the
+same routines and tolerances as numpy's and scipy's wrappers, whose argument checks cost
+several times the factorization at these sizes.
 """
 
 from __future__ import annotations
@@ -33,7 +34,9 @@ from .exceptions import AssemblyError, SceneError
 
 #: Rank threshold relative to the largest pivot of the constraint Jacobian.
 RANK_TOL = 1e-9
-#: Assembly converges when max |Phi| is below this [m or rad].
+#: Assembly converges when max |Phi| is below this, relative to the mechanism's size: each
+#: position row [m] against its length scale, each rotation row [rad] against 1
+#: (:meth:`pinlin.constraints.ConstraintSet.closure_error`); 1e-12 m for a mechanism of 1 m.
 ASSEMBLY_TOL = 1e-12
 #: Solved assemblies kept per constraint set (:class:`AssemblyCache`).
 CACHE_SIZE = 256
@@ -415,7 +418,7 @@ def _newton(system, q_guess: np.ndarray, independent: np.ndarray, max_iter: int,
     q = np.array(q_guess, dtype=float)
     dependent = complement(system.nv, independent)
     phi, jac = cons.residual_and_jacobian(q) if start is None else start
-    best = np.abs(phi).max(initial=0.0)
+    best = cons.closure_error(phi)
     dq = np.zeros(system.nv)
     for _ in range(max_iter):
         if best <= ASSEMBLY_TOL:
@@ -425,7 +428,7 @@ def _newton(system, q_guess: np.ndarray, independent: np.ndarray, max_iter: int,
         for scale in (1.0, 0.5, 0.25, 0.125, 0.0625):
             trial = pin.integrate(model, q, scale * dq)
             phi_t, jac_t = cons.residual_and_jacobian(trial)
-            worst_t = np.abs(phi_t).max()
+            worst_t = cons.closure_error(phi_t)
             if worst_t < best:
                 q, phi, jac, best = trial, phi_t, jac_t, worst_t
                 break

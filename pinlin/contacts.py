@@ -83,7 +83,7 @@ def statics_notes(system, lam: np.ndarray, scale: float) -> list[str]:
         system: The system (its constraints name the contacts).
         lam: Constraint forces per row.
         scale: The largest generalized force of the statics [N*m or N]: normal forces above
-            -1e-9 max(1, scale, |lam|) count as zero. The statics are solved to a residual of
+            -1e-9 max(scale, |lam|) count as zero. The statics are solved to a residual of
             1e-9 of that scale (``residual_tolerance``) and lam by a least-squares solve whose
             rounding is far below it, so a smaller pull is no pull to the solve's accuracy.
     """
@@ -101,7 +101,7 @@ def statics_notes(system, lam: np.ndarray, scale: float) -> list[str]:
                f"of {total}; the fixed base carries the rest")
     notes = [f"contact forces (world frame, on the robot): total vertical {vertical:.6g} N "
              f"{carrier}"]
-    tol = 1e-9 * max(1.0, scale, float(np.abs(lam).max(initial=0.0)))
+    tol = 1e-9 * max(scale, float(np.abs(lam).max(initial=0.0)))
     for contact in cons.contacts:
         force, torque = forces[contact.name]
         text = f"contact '{contact.name}': force {_vector(force)} N"

@@ -339,3 +339,10 @@ def output_map(system: JointIndex) -> OutputMap | None:
         frames.append((len(names), fid))
         names.extend(f"p:{fname}[{ax}]" for ax in "xyz")
     return OutputMap(tuple(rows), tuple(frames), tuple(names))
+
+
+def slides_only(kind: str) -> bool:
+    """Whether a Pinocchio joint of this kind (``shortname()``) only translates: prismatic
+    (PX, PY, PZ, unaligned) or translation joints, whose coordinates are in metres."""
+    return (kind.startswith(("JointModelP", "JointModelTranslation"))
+            and not kind.startswith("JointModelPlanar"))

@@ -49,7 +49,7 @@ from .assembly import (
 )
 from .contacts import statics_notes
 from .exceptions import EquilibriumError, SceneError
-from .operating_point import OperatingPoint, residual_tolerance
+from .operating_point import OperatingPoint, force_scale, residual_tolerance
 
 
 @dataclass(frozen=True)
@@ -152,7 +152,8 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
         jac = cons.jacobian(q0)
     part = partition(system, q0, jac)
     G = jac[part.rows]
-    f = _held_force(system, q0)
+    static = system.static_force(q0)
+    f = static - system.spring_torque(q0) if system.has_springs else static
     S = system.input_matrix
     # The statics use every row that can carry a force: the independent rows, and redundant
     # rows that are not identically zero (two feet holding one body: the split among them is
@@ -186,10 +187,13 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
                          f"({why}: a family of {free} dimension{'s' if free > 1 else ''}): the "
                          "least-norm [u0; lam] is reported; give your own split with "
                          "operating_point.solve = \"forces\" and the inputs u")
-    residual = f - S @ u0 - Gs.T @ lam_k
+    held = S @ u0
+    supported = Gs.T @ lam_k
+    residual = f - held - supported
     lam = np.zeros(cons.size)
     lam[rows] = lam_k
-    scale = float(np.abs(f).max(initial=0.0))
+    # The terms' size, not their sum f (which a passive equilibrium cancels to rounding).
+    scale = max(system.static_scale(q0, static), force_scale(held, supported))
     tol = residual_tolerance(scale)
     worst = int(np.argmax(np.abs(residual))) if residual.size else 0
     equilibrium = bool(residual.size == 0 or abs(residual[worst]) <= tol)
@@ -268,7 +272,8 @@ def _passive_equilibrium(system, q: np.ndarray, part: Partition, u0: np.ndarray,
         return R.T @ f, R, pc, lam
 
     rz, R, part, lam = reduced(q)
-    scale = max(1.0, float(np.abs(system.static_force(q)).max(initial=0.0)))
+    # As the final check's tolerance (:func:`residual_tolerance`): relative to the terms.
+    scale = max(system.static_scale(q, system.static_force(q)), force_scale(S @ u0))
     for _ in range(max_iter):
         if np.abs(rz).max(initial=0.0) <= 1e-11 * scale:
             return q, part

@@ -124,29 +124,37 @@ def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool,
     return (*_open_chain(system, Q, allow_non_equilibrium), None)
 
 
-def _held_force(system: System, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(gravity (N, nv), gravity minus springs (N, nv)) at every configuration [N*m or N]."""
+def _held_force(system: System, Q: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(gravity (N, nv), gravity minus springs (N, nv), the statics' scale (N,)) at every
+    configuration [N*m or N]; the scale as :meth:`pinlin.System.static_scale` gives it."""
     N, nv = Q.shape[0], system.nv
     gravity = np.empty((N, nv))
     for k in range(N):
         gravity[k] = system.static_force(Q[k])
+    if system.rotation is not None:
+        scale = np.array([system.static_scale(Q[k], gravity[k]) for k in range(N)])
+    else:
+        scale = np.abs(gravity).max(axis=1, initial=0.0)
     if not system.has_springs:
-        return gravity, gravity
+        return gravity, gravity, scale
     held = gravity.copy()
     for k in range(N):
         held[k] -= system.spring_torque(Q[k])
-    return gravity, held
+    if system.rotation is None:
+        scale = np.maximum(scale, np.abs(gravity - held).max(axis=1, initial=0.0))
+    return gravity, held, scale
 
 
-def _tolerances(gravity: np.ndarray) -> np.ndarray:
-    """The residual tolerance of each point, as :func:`residual_tolerance` gives it."""
-    scale = np.abs(gravity).max(axis=1, initial=0.0)
+def _tolerances(scale: np.ndarray) -> np.ndarray:
+    """The residual tolerance of each point, as :func:`residual_tolerance` gives it for the
+    scale of its terms in balance."""
     return np.array([residual_tolerance(float(s)) for s in scale])
 
 
 def _open_chain(system: System, Q: np.ndarray, allow: bool
                 ) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    gravity, held = _held_force(system, Q)
+    _, held, scale = _held_force(system, Q)
     U = np.ascontiguousarray(held[:, system.actuated_columns])
     N = Q.shape[0]
     free_at = system.unactuated
@@ -154,7 +162,7 @@ def _open_chain(system: System, Q: np.ndarray, allow: bool
         return U, np.ones(N, dtype=bool), []
     free = np.abs(held[:, free_at])
     worst = free.argmax(axis=1)
-    equilibrium = free[np.arange(N), worst] <= _tolerances(gravity)
+    equilibrium = free[np.arange(N), worst] <= _tolerances(scale)
     if not allow and not equilibrium.all():
         k = int(np.flatnonzero(~equilibrium)[0])
         i = int(free_at[worst[k]])
@@ -163,7 +171,7 @@ def _open_chain(system: System, Q: np.ndarray, allow: bool
         raise at_point(EquilibriumError(
             f"scene '{system.scene.name}': q is not an equilibrium: the inputs cannot supply "
             f"{held[k, i]:.6g} N or N*m along '{system.coordinate_names[i]}' (largest "
-            f"unactuated residual, tolerance {_tolerances(gravity[k:k + 1])[0]:.1e}); actuate "
+            f"unactuated residual, tolerance {_tolerances(scale[k:k + 1])[0]:.1e}); actuate "
             "it, or pass allow_non_equilibrium=True (--allow-non-equilibrium on the command "
             "line) to linearize about the falling state", residual,
             system.coordinate_names), k)
@@ -179,8 +187,7 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
     a zero column there, which the least-norm solution leaves at zero and the rank count
     leaves out, as the single call's row selection does."""
     cons = system.constraints
-    held = _held_force(system, Q)[1]
-    tolerance = _tolerances(held)  # as solve_constrained: the scale of the held force
+    _, held, scale = _held_force(system, Q)
     S = system.input_matrix
     N, nv, nu = Q.shape[0], system.nv, S.shape[1]
     plan = None if frame_jacobians is None else lk.plan(system)
@@ -200,6 +207,12 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
     inverse = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep)
     coefficients = inverse * np.einsum("kij,ki->kj", left, held)
     solution = np.einsum("kji,kj->ki", right, coefficients)
+    # As solve_constrained: the residual against the terms in balance (the statics', the
+    # inputs' and the constraint forces'), not against their sum.
+    inputs = np.einsum("kij,kj->ki", SG[:, :, :nu], solution[:, :nu])
+    supported = np.einsum("kij,kj->ki", SG[:, :, nu:], solution[:, nu:])
+    tolerance = _tolerances(np.maximum(scale, np.abs(np.concatenate([inputs, supported], axis=1))
+                                       .max(axis=1, initial=0.0)))
     residual = held - np.einsum("kij,kj->ki", SG, solution)
     worst = np.abs(residual).argmax(axis=1) if nv else np.zeros(N, dtype=int)
     bad = np.flatnonzero(np.abs(residual[np.arange(N), worst]) > tolerance) if nv else []

@@ -37,6 +37,7 @@ from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configu
     input_indices,
     one_dof_configuration,
     output_map,
+    slides_only,
     spring_vectors,
 )
 from .exceptions import SceneError, UnknownNameError
@@ -269,6 +270,24 @@ class System:
         return pin.rnea(self.kin_model, self.kin_data, self.kin_q(q), self.kin_v(z),
                         self._kin_a(z))[1:].copy()
 
+    def static_scale(self, q: np.ndarray, static: np.ndarray) -> float:
+        """The size of the generalized forces in the statics at ``q`` [N*m or N]: the largest
+        of gravity and, when rotating, the centrifugal force, each on its own, of the springs
+        (``static``: :meth:`static_force` at q), and of :attr:`force_reference`. A residual of
+        the statics is measured against it: the terms can cancel (a passive equilibrium) or
+        vanish (a pendulum hanging straight down), but rounding scales with their size, and
+        so does what counts as zero; nothing in it is absolute, so that a robot of
+        millimetres and milligrams (forces of ~1e-9 N*m) keeps the verdict it has at metres
+        and kilograms."""
+        scale = max(self.force_reference, float(np.abs(static).max(initial=0.0)))
+        if self.rotation is not None:
+            gravity = pin.computeGeneralizedGravity(self.model, self.data, q)
+            scale = max(scale, float(np.abs(gravity).max(initial=0.0)),
+                        float(np.abs(static - gravity).max(initial=0.0)))
+        if self.has_springs:
+            scale = max(scale, float(np.abs(self.spring_torque(q)).max(initial=0.0)))
+        return scale
+
     def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """Inverse dynamics M a + b(q, v) (rotating frame when rotating) [N*m or N]."""
         if self.rotation is None:
@@ -293,6 +312,45 @@ class System:
         M = pin.crba(self.kin_model, self.kin_data, self.kin_q(q))[self.kin_columns,
                                                                    self.kin_columns]
         return np.triu(M) + np.triu(M, 1).T
+
+    @functools.cached_property
+    def force_reference(self) -> float:
+        """The generalized force this system's statics are sized by [N*m or N], whatever the
+        configuration: over its joints, the most that gravity (and a steady rotation) can
+        exert on each, m_i (g + w^2 rho_i) r_i for rotations and m_i (g + w^2 rho_i) for
+        translations (m_i, r_i: mass and centre of mass of the joint's subtree and its
+        distance from the joint at the neutral configuration; rho_i: that centre's distance
+        from the rotation axis, plus r_i), and the springs' stiffness times one radian (or
+        times the largest r_i, per metre). It scales with the robot (k s for lengths x s,
+        masses x k), so a residual measured against it does too."""
+        model = self.model
+        data = pin.Data(model)   # its own: a cached value may be made in any thread
+        pin.centerOfMass(model, data, pin.neutral(model), True)
+        g = float(np.linalg.norm(model.gravity.linear))
+        w2, axis = 0.0, np.zeros(3)
+        if self.rotation is not None:
+            w2 = float(self.rotation.rate) ** 2
+            axis = np.asarray(self.rotation.axis, dtype=float)
+            axis = axis / np.linalg.norm(axis)
+        reference, reach = 0.0, 0.0
+        for i in range(1, model.njoints):
+            com = np.asarray(data.com[i])
+            r = float(np.linalg.norm(com - data.oMi[i].translation))
+            rho = float(np.linalg.norm(com - (com @ axis) * axis)) + r
+            pull = float(data.mass[i]) * (g + w2 * rho)
+            kind = model.joints[i].shortname()
+            turns = not slides_only(kind)
+            slides = slides_only(kind) or kind.startswith(("JointModelFreeFlyer",
+                                                           "JointModelPlanar"))
+            reference = max(reference, pull * r if turns else 0.0, pull if slides else 0.0)
+            reach = max(reach, r)
+        if self.has_springs:
+            for joint in self.joints.values():
+                k = self.stiffness[joint.idx_v:joint.idx_v + joint.nv]
+                if k.size:
+                    lever = reach if slides_only(joint.kind) else 1.0
+                    reference = max(reference, float(np.abs(k).max()) * lever)
+        return reference
 
     @functools.cached_property
     def effects_in_play(self) -> tuple[str, ...]:

@@ -59,9 +59,11 @@ class _Closures:
         self.P6_rows = self.P6[rows]
         self.mimic_rows = plan.mimic[rows]
         self.row_index = rows
+        self.inverse_scale = (1.0 / cons.row_scale).tolist()  # closure_error's, per row
 
     def __call__(self, q: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, float]:
-        """(Phi(q) (m), max |Phi|); the frame Jacobians into ``J`` (F, 6, nv)."""
+        """(Phi(q) (m), its closure error, max |Phi_i| / row scale (as
+        ``ConstraintSet.closure_error``)); the frame Jacobians into ``J`` (F, 6, nv)."""
         model, data = self.model, self.data
         pin.computeJointJacobians(model, data, q)
         pos = self.positions
@@ -72,12 +74,13 @@ class _Closures:
         phi -= self.anchor
         if self.has_mimic:
             self.cons._mimic_residual(q, phi)
-        return phi, max(map(abs, phi.tolist()), default=0.0)
+        return phi, max((abs(p) * s for p, s in zip(phi.tolist(), self.inverse_scale,
+                                                    strict=True)), default=0.0)
 
     def closed(self, Q: np.ndarray) -> np.ndarray:
         """Whether each configuration of ``Q`` (N, nq) closes the loops (max |Phi| <=
-        ASSEMBLY_TOL): positions only, one ``forwardKinematics`` and a frame placement per
-        closure frame per point, the residuals stacked."""
+        ASSEMBLY_TOL, relative to the row scales): positions only, one ``forwardKinematics``
+        and a frame placement per closure frame per point, the residuals stacked."""
         model, data, frames = self.model, self.data, self.plan.frames
         pos = np.empty((len(Q), 3 * len(frames)))
         for k, q in enumerate(Q):
@@ -88,7 +91,7 @@ class _Closures:
         if self.has_mimic:
             for k, q in enumerate(Q):
                 self.cons._mimic_residual(q, phi[k])
-        return np.abs(phi).max(axis=1, initial=0.0) <= ASSEMBLY_TOL
+        return (np.abs(phi) / self.cons.row_scale).max(axis=1, initial=0.0) <= ASSEMBLY_TOL
 
     def rows(self, J: np.ndarray) -> np.ndarray:
         """Phi_q on the independent rows (r x nv) from the frame Jacobians ``J``."""

@@ -239,7 +239,7 @@ def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
     z, dep = np.array(frozen.independent, dtype=int), np.array(frozen.dependent, dtype=int)
     for k in range(1, N):
         q = Q[k]
-        if np.abs(cons.residual(q)).max(initial=0.0) > ASSEMBLY_TOL:
+        if cons.closure_error(cons.residual(q)) > ASSEMBLY_TOL:
             step = pin.difference(model, q, out[k - 1])  # warm start: the dependent
             step[z] = 0.0                                 # coordinates of point k-1
             try:

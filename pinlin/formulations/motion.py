@@ -54,7 +54,7 @@ from ..derivatives import second_order_terms
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import ModelError
 from ..linear_model import LinearModel
-from ..operating_point import OperatingPoint, residual_tolerance
+from ..operating_point import OperatingPoint, force_scale, residual_tolerance
 from . import moving_batch, moving_manifold
 from .constrained import (
     SENSITIVITY_CHECK,
@@ -114,8 +114,10 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
         lam = np.zeros(cons.size)
         lam[part.rows] = lam_k
         M0 = system.mass_matrix(q0)
-    tau = system.applied_force(q0, v, u0) - system.rnea(q0, v, np.zeros(system.nv))
-    tol = residual_tolerance(float(np.abs(tau).max(initial=0.0)))
+    applied = system.applied_force(q0, v, u0)
+    bias = system.rnea(q0, v, np.zeros(system.nv))
+    # Measured against the terms in balance, not their sum (:func:`residual_tolerance`).
+    tol = residual_tolerance(max(force_scale(applied), system.static_scale(q0, bias)))
     # The force left unbalanced once the constraint forces act, M a0: an equilibrium where
     # nothing moves and it vanishes to the tolerance of an open chain's given state.
     residual = M0 @ a0
@@ -298,7 +300,7 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
     (K with the geometric stiffness -lam_p^T Phi_qq), formed by the same stable elimination
     as at rest (:func:`~pinlin.formulations.constrained.penalty_first_order`); f0 = [v0; a_p].
     """
-    from .constrained import _info, penalty_first_order, penalty_parameters
+    from .constrained import _info, penalty_error_bound, penalty_first_order, penalty_parameters
 
     alpha, mu, omega = penalty_parameters(alpha, mu, omega)
     cons = system.constraints
@@ -326,6 +328,7 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
                    + _gamma_derivative(system, pop)[rows] + 2.0 * mu * omega * jv)
         C_extra = 2.0 * jv
     S = system.input_matrix
+    bound = penalty_error_bound(terms.M, C, terms.K, G, alpha, mu, omega, system.scene.name)
     A, B = penalty_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega,
                                K_extra=K_extra, C_extra=C_extra)
     N = kinematic_block(system, op.v)
@@ -333,7 +336,8 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
         A[:nv, :nv] = N
     GtG = G.T @ G
     Cout, D, out_names, y0 = output_matrices(system, pop)
-    info = _info(system, pop, cp, "penalty", "analytic", alpha=alpha, mu=mu, omega=omega)
+    info = _info(system, pop, cp, "penalty", "analytic", alpha=alpha, mu=mu, omega=omega,
+                 penalty_error_bound=bound)
     return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names,
                        M=terms.M + alpha * GtG,

@@ -1,0 +1,132 @@
+"""The same system at another physical scale gives the same answer, scaled.
+
+Reference (independent of the code): dynamic similarity. Lengths multiplied by s, masses by
+k (inertias by k s^2), gravity unchanged, springs by k s (torque per radian) and a steady
+rotation's rate by 1/sqrt(s): the equations of motion in joint angles are those of the
+original with time stretched by sqrt(s), so every eigenvalue is the original's / sqrt(s),
+and every verdict (an equilibrium or not, assembled or not) is the same. With s and k powers
+of 2 (s an even power, so that sqrt(s) is one too) every number in the scaled problem is the
+original's times a power of 2, exactly: floating-point arithmetic then scales exactly too,
+and only a threshold that does not scale (an absolute tolerance, in metres or N*m) can tell
+the two apart. The tolerances below are therefore not rounding bounds but the margin that a
+threshold placed relative to the problem's own size leaves: 1e-11 relative, against the
+1e-9 .. 1e-2 that absolute thresholds produced (a 4 mm pendulum accelerating at 1700 rad/s^2
+was called an equilibrium; a 0.1 mm five-bar closed to 4e-9 of its size).
+"""
+
+from __future__ import annotations
+
+import tomllib
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pinlin
+from pinlin.scene import bundled_scenes
+
+
+def scaled_scene(name: str, s: float, k: float, tmp: Path, **overrides) -> pinlin.Scene:
+    """Bundled scene ``name`` with lengths x s and masses x k (see the module docstring);
+    ``overrides``: scene fields replaced (after scaling)."""
+    path = bundled_scenes()[name]
+    data = tomllib.loads(path.read_text())
+    tree = ET.parse(path.parent / data.pop("urdf"))
+    for link in tree.getroot().iter("link"):
+        for tag in ("visual", "collision"):
+            for element in link.findall(tag):
+                link.remove(element)
+        for inertial in link.findall("inertial"):
+            mass = inertial.find("mass")
+            mass.set("value", repr(float(mass.get("value")) * k))
+            inertia = inertial.find("inertia")
+            for key in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+                inertia.set(key, repr(float(inertia.get(key, "0")) * k * s * s))
+    for origin in tree.getroot().iter("origin"):
+        if origin.get("xyz"):
+            origin.set("xyz", " ".join(repr(float(x) * s) for x in origin.get("xyz").split()))
+    prismatic = {j.get("name") for j in tree.getroot().iter("joint")
+                 if j.get("type") == "prismatic"}
+    effects = data.get("effects", {})
+    for joint, spring in effects.get("springs", {}).items():
+        spring["stiffness"] *= k / s if joint in prismatic else k * s
+        if joint in prismatic:
+            spring["rest"] *= s
+    if "rotation" in effects:
+        effects["rotation"]["rate"] /= np.sqrt(s)
+    for joint, value in data.get("operating_point", {}).get("q", {}).items():
+        if joint in prismatic:
+            data["operating_point"]["q"][joint] = value * s
+    data.update(overrides)
+    urdf = tmp / f"{name}_{s:g}_{k:g}.urdf"
+    tree.write(urdf)
+    return pinlin.Scene.from_urdf(urdf, **data)
+
+
+def eigenvalues(model: pinlin.LinearModel) -> np.ndarray:
+    """Sorted by imaginary part (exact zeros for real ones), then real part (of undamped
+    modes: rounding, which must not decide the order)."""
+    lam = np.linalg.eigvals(model.A)
+    return lam[np.lexsort((lam.real, lam.imag))]
+
+
+#: (s, k): a 4 mm robot of the same density, 61 um and 1/256 of the mass, 256 m and 2^20
+#: times the mass; powers of 2 (module docstring).
+SCALES = [(2.0 ** -8, 2.0 ** -24), (2.0 ** -14, 2.0 ** -8), (2.0 ** 8, 2.0 ** 20)]
+
+
+@pytest.mark.parametrize("s, k", SCALES)
+def test_a_joint_its_inputs_cannot_hold_is_refused_at_any_size(tmp_path, s, k):
+    """The double pendulum with its elbow bent and only the shoulder actuated: gravity pulls
+    the elbow (1.1 N*m at 1 m and 1 kg), at any size."""
+    fields = {"operating_point": {"q": {"shoulder": 0.0, "elbow": 0.5}},
+              "inputs": {"actuated": ["shoulder"]}}
+    for scale, mass in ((1.0, 1.0), (s, k)):
+        scene = scaled_scene("double_pendulum", scale, mass, tmp_path, **fields)
+        with pytest.raises(pinlin.EquilibriumError, match="not an equilibrium"):
+            pinlin.linearize(scene)
+        # Asked for (allowed), the acceleration is the original's / s.
+        op = pinlin.operating_point(scene, allow_non_equilibrium=True)
+        if scale == 1.0:
+            a_ref = op.a
+        else:
+            np.testing.assert_allclose(op.a * s, a_ref, rtol=1e-11)
+            assert not op.equilibrium
+
+
+@pytest.mark.parametrize("s, k", SCALES)
+@pytest.mark.parametrize("name", ["double_pendulum", "rotating_double_pendulum", "four_bar",
+                                  "five_bar", "slider_crank", "delta"])
+def test_eigenvalues_scale_as_one_over_root_s(tmp_path, name, s, k):
+    """Open chains held by their inputs, the rotating pendulum's passive equilibrium (whose
+    gravity and centrifugal forces cancel: a large one was refused against an absolute
+    tolerance), and the mechanisms' assemblies (closed to an absolute 1e-12 m before)."""
+    reference = pinlin.linearize(scaled_scene(name, 1.0, 1.0, tmp_path))
+    model = pinlin.linearize(scaled_scene(name, s, k, tmp_path))
+    lam_ref, lam = eigenvalues(reference), eigenvalues(model) * np.sqrt(s)
+    size = np.abs(lam_ref).max()
+    assert np.abs(lam - lam_ref).max() <= 1e-11 * size, (lam, lam_ref)
+    assert model.operating_point.equilibrium == reference.operating_point.equilibrium
+
+
+def test_the_penalty_warns_where_its_alpha_is_small_for_the_masses(tmp_path):
+    """The penalty formulation's alpha is in kg per constraint unit^2: the default 1e7 leaves
+    the four-bar of kilograms its physical eigenvalues to 3e-8 of the independent model's,
+    but the same four-bar of 1e6 kg at 1/128 of the size lost them (0.1) and gained an
+    unstable eigenvalue, silently. The bound in ``info`` covers the error measured against
+    the independent model (the reference), and the warning comes where it is large."""
+    for s, k, due in ((1.0, 1.0, False), (2.0 ** -7, 2.0 ** 20, True)):
+        scene = scaled_scene("four_bar", s, k, tmp_path)
+        exact = np.linalg.eigvals(pinlin.linearize(scene).A)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = pinlin.linearize(scene, formulation="penalty")
+        lam = np.linalg.eigvals(model.A)
+        error = max(np.abs(lam - x).min() / abs(x) for x in exact)
+        warned = [w for w in caught if issubclass(w.category, pinlin.AccuracyWarning)
+                  and "penalty alpha" in str(w.message)]
+        assert error <= model.info["penalty_error_bound"]
+        assert bool(warned) == due
+        assert (error > 1e-2) == due and (error < 1e-6) != due
