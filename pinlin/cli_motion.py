@@ -172,11 +172,25 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
     if linearized.M is not None:
         lines.append("second-order matrices M, C_damp, K, Bu stored at every point")
     if args.dt is not None:
-        lines.append(f"discretized: {method}, dt = {args.dt:g} s")
+        lines.append(f"discretized: {method}, dt = {args.dt:g} s" + _other_spacing(linearized.t,
+                                                                                  args.dt))
     model.save(out)     # the file first: a failed write prints one line, not the summary
     lines.append(f"models written to {out}")
     print("\n".join(lines))
     return 0
+
+
+def _other_spacing(t: np.ndarray | None, dt: float) -> str:
+    """A remark when the states file's t is evenly spaced by other than ``dt`` [s] (a model
+    stepped at dt along points sampled at another spacing, which a TV-LQR would misuse)."""
+    if t is None or len(t) < 2:
+        return ""
+    steps = np.diff(t)
+    if not np.allclose(steps, steps[0], rtol=1e-9, atol=0.0) or \
+            abs(steps[0] - dt) <= 1e-9 * dt:
+        return ""
+    return (f" (the states file's t is spaced {steps[0]:g} s: each model steps {dt:g} s, not "
+            "from one point to the next)")
 
 
 def _times(args: argparse.Namespace) -> np.ndarray:

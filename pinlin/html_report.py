@@ -326,6 +326,7 @@ def report_html(scene, *, model=None, modes: ModalAnalysis | None = None,
     # comment that swallows the page (HTML's script data states); JSON reads \u003c as "<".
     payload = json.dumps(data, separators=(",", ":")).replace("<", "\\u003c")
     title = f"pinlin report: {model.name}"
+    count = len(modes.modes())
     return f"""{MARKER}
 <html lang="en"><head><meta charset="utf-8">
 <meta http-equiv="Content-Security-Policy" content="{_CSP}">
@@ -334,7 +335,7 @@ def report_html(scene, *, model=None, modes: ModalAnalysis | None = None,
 <title>{_e(title)}</title><style>{STYLE}</style></head>
 <body>
 <h1>{_e(title)}</h1>
-<p class="note">nq = {system.nq}, nv = {system.nv}; {len(modes.modes())} modes
+<p class="note">nq = {system.nq}, nv = {system.nv}; {count} mode{'s' * (count != 1)}
 ({len(modes.eigenvalues)} eigenvalues, {_e(modes.method)} eigensolver). Written by pinlin;
 opens from disk, without a network.</p>
 <h2>Operating point</h2>

@@ -259,6 +259,20 @@ def test_trajectory_says_when_it_moved_the_given_states(capfd, tmp_path):
     assert code == 0 and "states moved" not in out
 
 
+def test_trajectory_says_when_dt_is_not_the_states_files_spacing(capfd, tmp_path):
+    """Points sampled every 0.05 s discretized at --dt 0.01: each model steps 0.01 s, which a
+    TV-LQR chaining the points would misuse; the summary says so (and not where they agree)."""
+    states = tmp_path / "p.npz"
+    t = np.arange(4) * 0.05
+    np.savez(states, t=t, q=0.1 * np.sin(t)[:, None], v=0.1 * np.cos(t)[:, None],
+             u=np.zeros((4, 1)))
+    for dt, remark in (("0.01", True), ("0.05", False)):
+        code, out, _ = run(capfd, "trajectory", "pendulum", str(states), "--dt", dt, "--out",
+                           str(tmp_path / f"m{dt}.npz"), "--no-progress")
+        assert code == 0 and f"dt = {dt} s" in out
+        assert ("the states file's t is spaced 0.05 s" in out) == remark, out
+
+
 def test_nonlinear_response_names_the_option_and_unknown_names_are_listed_once(capfd):
     """The nonlinear run's refusal of the initial state named the API's 'dx0'; a name that is
     both a bundled scene and a robot was suggested twice."""
