@@ -305,14 +305,19 @@ def build_parser() -> argparse.ArgumentParser:
     ben.add_argument("--repeats", type=int, default=5,
                      help="timing repeats per point (1 to 1000)")
     ben.add_argument("--out-dir", default="validation/reports",
-                     help="folder for accuracy_vs_time.md and its plots")
+                     help="folder for accuracy_vs_time.md and its plots (default: "
+                          "validation/reports under the current folder; pinlin's own "
+                          "reports there are replaced)")
     ben.add_argument("--no-progress", action="store_true", help="no progress bar")
     ben.set_defaults(func=_cmd_bench)
     val = sub.add_parser("validate", help="compare linear models with MuJoCo and write reports")
     val.add_argument("targets", nargs="*", metavar="SCENE_OR_ROBOT")
     val.add_argument("--all", action="store_true",
                      help="every bundled scene and every example-robot-data robot that loads")
-    val.add_argument("--out-dir", default="validation/reports", help="folder for the reports")
+    val.add_argument("--out-dir", default="validation/reports",
+                     help="folder for the reports (default: validation/reports under the "
+                          "current folder; pinlin's own reports there are replaced, its index "
+                          "keeps the rows of other systems)")
     val.add_argument("--no-progress", action="store_true", help="no progress bar")
     val.set_defaults(func=_cmd_validate)
     exp = sub.add_parser("export-mjcf", help="write the scene as MJCF with only its effects")
