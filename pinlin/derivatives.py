@@ -33,7 +33,8 @@ from .operating_point import OperatingPoint
 from .system import System
 
 BACKENDS = ("analytic", "fd3", "fd5")
-#: Default steps per perturbed variable: "q" [rad or m], "v" [rad/s or m/s], "u" [N*m or N].
+#: Default steps per perturbed variable: "q" [rad or m], "v" [rad/s or m/s], "u" [N*m or N]
+#: (the input's step is scaled by max(1, |u0|): the dynamics are linear in u).
 #: Chosen at the bottom of the measured V-curves (validation/reports/accuracy_vs_time.md).
 DEFAULT_STEPS = {"fd3": {"q": 1e-5, "v": 1e-5, "u": 1e-3},
                  "fd5": {"q": 1e-3, "v": 1e-3, "u": 1e-3}}
@@ -261,11 +262,16 @@ def _numerical(system: System, op: OperatingPoint, backend: str, steps: Mapping[
                                                  scale_v, backend, steps["v"]))
     Bu = np.zeros_like(S)
     if S.shape[1]:
-        # Bu = -dH/du. H is linear in u: the difference is exact up to rounding, any step.
+        # Bu = -dH/du. H is linear in u: the difference is exact up to the rounding of
+        # u0 +- h, eps |u0| / h relative, so each input's step is h max(1, |u0_j|) (a tonne
+        # held at 1e7 N*m lost 8 digits of B to a step of 1e-3 N*m).
+        size = np.maximum(1.0, np.abs(op.u))
+
         def h_of_u(d: np.ndarray) -> np.ndarray:
-            return S @ (op.u + d) - residual_forces(system, op.q, op.v, op.a, op.lam)
+            return S @ (op.u + size * d) - residual_forces(system, op.q, op.v, op.a, op.lam)
 
         Bu, _, _ = _difference(h_of_u, S.shape[1], steps["u"], backend, False)
+        Bu /= size
     alt = None
     if estimate:
         # Companion matrices scaled so that (alt - main) is the estimated error of main.

@@ -265,7 +265,9 @@ def linearize(scene: Scene | System | str | Path, *,
             estimate_error=)``; ``step`` and ``estimate_error`` below are the shortcuts'.
         step: Finite-difference step for ``fd3``/``fd5`` only: one number for all, or a table
             ``{"q": [rad or m], "v": [rad/s or m/s], "u": [N*m or N]}``, each in
-            [1e-10, 0.1]; default ``pinlin.derivatives.DEFAULT_STEPS``.
+            [1e-10, 0.1]; default ``pinlin.derivatives.DEFAULT_STEPS``. The input step is
+            taken times max(1, |u0|) per input (the dynamics are linear in u: only the
+            rounding of u0 +- h counts).
         estimate_error: With ``fd3``/``fd5``, also report ``model.info["error_estimate"]``
             (relative error of A: truncation from the companion formula, rounding from the
             measured noise of the dynamics; fd3 at ~2x, fd5 at ~1.5x the cost). An estimate

@@ -130,3 +130,19 @@ def test_the_penalty_warns_where_its_alpha_is_small_for_the_masses(tmp_path):
         assert error <= model.info["penalty_error_bound"]
         assert bool(warned) == due
         assert (error > 1e-2) == due and (error < 1e-6) != due
+
+
+@pytest.mark.parametrize("s, k", [(1.0, 1.0), (2.0 ** 8, 2.0 ** 20)])
+def test_numerical_input_derivatives_keep_their_digits_on_heavy_robots(tmp_path, s, k):
+    """The inputs enter the dynamics linearly, so fd5's B is exact but for the rounding of
+    u0 +- h, eps |u0| / h relative: a fixed step of 1e-3 N*m beside the 1.8e9 N*m that hold a
+    256 m, million-fold heavy double pendulum bent at the elbow left B 2.6e-5 off. The step
+    now scales with max(1, |u0|): B agrees with the analytic one to rounding at any size."""
+    scene = scaled_scene("double_pendulum", s, k, tmp_path,
+                         operating_point={"q": {"shoulder": 0.5, "elbow": 0.3}})
+    exact = pinlin.linearize(scene).B
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        numeric = pinlin.linearize(scene, derivatives="fd5").B
+    # eps / h = 2.2e-13 per column, summed over fd5's four evaluations: 1e-12 with margin 5
+    assert np.abs(numeric - exact).max() <= 1e-12 * np.abs(exact).max()
