@@ -15,20 +15,24 @@ import os
 import resource
 import signal
 import stat
+import struct
 import subprocess
 import sys
 import warnings
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.io
 from conftest import REPO, URDF_DIR
 
 import pinlin
 from pinlin import ArgumentError, LinearModel, ModelError, ModelFileError
 from pinlin.cli import main
 from pinlin.files import atomic_path, write_atomic, write_text_atomic
+from pinlin.mat_check import MatStructureError, check_mat_elements
 
 FORMATS = (".npz", ".mat", ".json")
 GRAPHS = REPO / "validation" / "graphs"
@@ -1068,3 +1072,50 @@ def test_a_mechanism_trajectory_file_keeps_its_loops_and_forces(tmp_path):
         again = pinlin.TrajectoryModel.load(traj.save(tmp_path / f"t{suffix}"))
         np.testing.assert_array_equal(again.lam, traj.lam)
         assert again.at(2).operating_point.lam_names == traj.at(2).operating_point.lam_names
+
+
+def _elements(raw: bytes):
+    pos, out = 128, []
+    while pos < len(raw):
+        mtype, size = struct.unpack_from("<II", raw, pos)
+        out.append((mtype, raw[pos + 8:pos + 8 + size]))
+        pos += 8 + size + (0 if mtype == 15 else -size % 8)
+    return out
+
+
+def test_a_compressed_element_holding_two_arrays_is_refused():
+    """A compressed element must hold one array: a second (here with a sparse class, which
+    crashed scipy's reader) would reach scipy unchecked."""
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, {"a": np.ones((2, 2)), "b": np.arange(3.0)}, do_compression=True)
+    raw = buf.getvalue()
+    inner = [zlib.decompress(data) for mtype, data in _elements(raw)]
+    assert len(inner) == 2
+    second = bytearray(inner[1])
+    assert second[16] == 6           # class double -> sparse (5): scipy's reader crashed on it
+    second[16] = 5
+    packed = zlib.compress(inner[0] + bytes(second))
+    bad = raw[:128] + struct.pack("<II", 15, len(packed)) + packed
+    with pytest.raises(MatStructureError, match="byte 128"):
+        check_mat_elements(bad)
+
+
+def test_a_numeric_array_shorter_than_its_dimensions_is_refused():
+    """Dimensions 4 x 1 over 3 doubles: refused, not handed to scipy."""
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, {"x": np.arange(3.0)}, oned_as="column")
+    raw = buf.getvalue()
+    dims = struct.pack("<IIii", 5, 8, 3, 1)
+    assert raw.count(dims) == 1
+    check_mat_elements(raw)
+    bad = raw.replace(dims, struct.pack("<IIii", 5, 8, 4, 1))  # 4 x 1 declared, 3 doubles held
+    with pytest.raises(MatStructureError, match="does not hold its 4 entries"):
+        check_mat_elements(bad)
+
+
+def test_an_operating_point_whose_a_does_not_match_v_is_refused():
+    """a changed alone (not with v): its size is checked against v's."""
+    model = pinlin.linearize(pinlin.Scene.load(URDF_DIR / "double_pendulum.toml"))
+    op = dataclasses.replace(model.operating_point, a=np.zeros(3))
+    with pytest.raises(pinlin.ShapeError, match="operating_point.a has 3 entries, expected v's 2"):
+        dataclasses.replace(model, operating_point=op)

@@ -15,6 +15,7 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.linalg as sla
 from conftest import REPO, URDF_DIR
 from scipy.integrate import solve_ivp
 from scipy.optimize import linear_sum_assignment
@@ -691,3 +692,55 @@ def test_rounding_is_not_called_growth():
     model = pinlin.linearize(pinlin.Scene.load(URDF_DIR / "double_pendulum.toml"))
     with pytest.raises(pinlin.ModelError, match="no mode grows beyond rounding"):
         pinlin.response(model, [0.0, 1e308, 1.7e308], [0.01, 0.0, 0.0, 0.0])
+
+
+def _dp_model():
+    return pinlin.linearize(pinlin.Scene.load(URDF_DIR / "double_pendulum.toml"))
+
+
+def test_a_discrete_impulse_is_one_sample_of_height_area_over_dt():
+    """A discrete model's impulse of area a is one input sample a / dt (the difference
+    equation stepped by hand), the continuous impulse to O(dt)."""
+    model = _dp_model()
+    dt = 0.01
+    disc = model.discretize(dt)
+    t = dt * np.arange(20)
+    a = np.array([0.3, -0.2])
+    kick = pinlin.response(disc, t, None, pinlin.impulse(a))
+    x = np.zeros(model.n_states)
+    ref = [x]
+    for k in range(len(t) - 1):           # the difference equation by hand, u[0] = a / dt
+        x = disc.A @ x + (disc.B @ (a / dt) if k == 0 else 0.0)
+        ref.append(x)
+    np.testing.assert_allclose(kick.x, np.array(ref), rtol=1e-12, atol=1e-15)
+    # and the pulse of area a is the continuous impulse to O(dt): x(dt) ~ e^{A dt} B a
+    cont = sla.expm(model.A * dt) @ model.B @ a
+    assert np.abs(kick.x[1] - cont).max() <= 0.05 * np.abs(cont).max()
+
+
+def test_the_exact_march_judges_its_longest_step_not_its_shortest():
+    """Uneven times: a step of 1e15 s after one of 1 s leaves no digit (eps |A| dt >= 1)."""
+    model = _dp_model()
+    with pytest.raises(pinlin.ModelError, match="no correct digit"):
+        pinlin.response(model, [0.0, 1.0, 1e15], [0.01, 0.0, 0.0, 0.0], method="exact")
+
+
+def test_a_nearly_symmetric_stiffness_keeps_the_modal_response_exact():
+    """K symmetric to 2e-8 (within the symmetric path's 1e-8 relative): the closed-form
+    vectors leave a residual, which sends the response to the checked decomposition; the
+    response against expm(A t) x0."""
+    M = np.diag([1.0, 2.0])
+    K = np.array([[3.0, -1.0], [-1.0 + 2e-8, 2.0]])   # skew 2e-8 < 1e-8 max|K|: (K, M) path
+    Minv = np.linalg.inv(M)
+    Bu = np.array([[1.0], [0.0]])
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-Minv @ K, np.zeros((2, 2))]])
+    B = np.vstack([np.zeros((2, 1)), Minv @ Bu])
+    model = pinlin.LinearModel(A, B, np.eye(4), np.zeros((4, 1)), ["q:a", "q:b", "v:a", "v:b"],
+                               ["u:a"], ["y0", "y1", "y2", "y3"], M=M, C_damp=np.zeros((2, 2)),
+                               K=K, Bu=Bu)
+    assert pinlin.modal(model).method == "symmetric"
+    t = np.linspace(0.0, 20.0, 401)
+    x0 = np.array([0.1, -0.05, 0.0, 0.0])
+    ref = np.array([sla.expm(A * tk) @ x0 for tk in t])
+    x = pinlin.response(model, t, x0, method="modal").x
+    assert np.abs(x - ref).max() <= 1e-10 * np.abs(ref).max()

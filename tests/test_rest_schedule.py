@@ -513,3 +513,14 @@ def test_cli_refuses_the_opt_in_for_given_states(tmp_path, capfd):
     err = capfd.readouterr().err
     assert "argument '--allow-non-equilibrium': applies to a schedule of rest points" in err
     assert err.count("\n") == 1 and not out.exists()
+
+
+def test_a_schedule_with_unique_holding_inputs_reports_no_least_norm_points():
+    """The four-bar's holding input is unique: neither the single calls nor the schedule
+    report a least-norm split."""
+    scene = pinlin.Scene.load(URDF_DIR / "four_bar.toml")
+    traj = pinlin.linearize_trajectory(scene, schedule(scene, 5, 0.4, 0))
+    for k in range(5):
+        single = pinlin.linearize(scene, q=traj.q[k])
+        assert not any("not unique" in note for note in single.operating_point.notes)
+    assert "least_norm_points" not in traj.info

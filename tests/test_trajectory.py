@@ -20,6 +20,7 @@ from types import SimpleNamespace
 import numpy as np
 import pinocchio as pin
 import pytest
+import scipy.linalg as sla
 from conftest import URDF_DIR
 
 import pinlin
@@ -753,3 +754,26 @@ def test_an_ill_conditioned_point_warns_as_the_single_call(tmp_path, workers):
         warnings.simplefilter("error", pinlin.AccuracyWarning)
         pinlin.linearize_trajectory(scene, np.array([[0.0, 0.5]]), np.zeros((1, 2)),
                                     np.zeros((1, 2)))
+
+
+def test_trajectory_zoh_beyond_one_block_is_van_loans_exponential_at_every_point():
+    """The stacked ZOH runs in blocks of 128 points: points 126-129 (both sides of the
+    first block's end) against scipy's expm of the augmented [[A, B, f0], [0]] dt."""
+    scene = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml")
+    N, nv = 130, scene.system.nv
+    rng = np.random.default_rng(0)
+    q0 = pinlin.linearize(scene).operating_point.q
+    Q = q0 + rng.uniform(-0.5, 0.5, (N, q0.size))
+    V = rng.uniform(-1.0, 1.0, (N, nv))
+    U = rng.uniform(-1.0, 1.0, (N, len(scene.system.actuated)))
+    traj = pinlin.linearize_trajectory(scene, Q, V, U)
+    dt = 0.01
+    disc = traj.discretize(dt)
+    n, m = traj.B.shape[1:]
+    for k in (0, 126, 127, 128, 129):
+        aug = np.zeros((n + m + 1, n + m + 1))
+        aug[:n, :n], aug[:n, n:n + m], aug[:n, -1] = traj.A[k], traj.B[k], traj.f0[k]
+        phi = sla.expm(aug * dt)
+        np.testing.assert_allclose(disc.A[k], phi[:n, :n], rtol=0, atol=1e-13)
+        np.testing.assert_allclose(disc.B[k], phi[:n, n:n + m], rtol=0, atol=1e-13)
+        np.testing.assert_allclose(disc.f0[k], phi[:n, -1], rtol=0, atol=1e-13)

@@ -306,3 +306,19 @@ def test_a_smooth_sweep_closes_each_point_in_one_newton_step(monkeypatch):
     assert len(closed) == 200 and per_point[1:].max() == 2, per_point
     single = pinlin.linearize(scene, q=traj.q[100], v=traj.v[100], u=U[100])
     np.testing.assert_allclose(traj.at(100).A, single.A, rtol=0, atol=1e-9 * np.abs(single.A).max())
+
+
+def test_a_point_open_by_ten_assembly_tolerances_is_closed_not_kept():
+    """A point given a few assembly tolerances open is closed, not kept as given."""
+    scene = pinlin.Scene.resolve("four_bar")
+    system = scene.system
+    cons = system.constraints
+    Q, V, U, z = sweep(scene, 6, 3)
+    first = pinlin.linearize_trajectory(scene, Q, V, U)
+    dep = [i for i in range(system.nv) if i not in set(z.tolist())]
+    Q2 = first.q.copy()
+    Q2[3, dep[0]] += 2e-11
+    opened = cons.closure_error(cons.residual(Q2[3]))
+    assert 5 * ASSEMBLY_TOL < opened < 100 * ASSEMBLY_TOL
+    again = pinlin.linearize_trajectory(scene, Q2, first.v, U)
+    assert cons.closure_error(cons.residual(again.q[3])) <= ASSEMBLY_TOL

@@ -377,3 +377,25 @@ def test_plots_leave_out_cases_whose_simulation_failed(monkeypatch, tmp_path):
     assert result.cases[0].nonlinear is None
     paths = result.plot(tmp_path, "failed")
     assert all(p.read_bytes()[:4] == b"\x89PNG" for p in paths)
+
+
+def test_atol_noise_is_judged_at_the_smallest_amplitude():
+    """The solver's atol must stay far below the smallest amplitude it is asked about."""
+    # 1e2 atol / a = 1e2 * 1e-6 / 1e-3 = 0.1 >= tolerance 0.01 (1e2 atol alone is 1e-4)
+    with pytest.raises(pinlin.ArgumentError, match="argument 'atol'.*smallest amplitude"):
+        pinlin.validity("pendulum", [1e-3], atol=1e-6, horizon=0.1)
+
+
+def test_a_direction_horizon_ends_at_the_fastest_growth():
+    """Two unstable modes (1 and 4 1/s) and an oscillation: the horizon is the faster
+    growth's e^2, 2/4 s, and the period the oscillation's pi."""
+    A = sla.block_diag([[1.0]], [[4.0]], [[0.0, 2.0], [-2.0, 0.0]])
+    n = A.shape[0]
+    model = pinlin.LinearModel(A, np.zeros((n, 1)), np.eye(n), np.zeros((n, 1)),
+                               [f"x{k}" for k in range(n)], ["u"], [f"y{k}" for k in range(n)])
+    ma = pinlin.modal(model, rigid_tol=1e-6)
+    horizons = {i: VM._mode_horizon(i, ma, 5.0, 2.0) for i in ma.modes()
+                if ma.kind(i) not in ("rigid", "constraint")}
+    T, period, _ = VM._direction_horizon(ma, horizons, None)
+    assert pytest.approx(2.0 / 4.0, rel=1e-12) == T  # e^2 of the mode growing at 4 1/s
+    assert period == pytest.approx(math.pi, rel=1e-12)

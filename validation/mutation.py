@@ -5,7 +5,7 @@ checkout's last commit, with a plausible bug (a consistently rescaled parameter,
 sign, a dropped term or check). The suite then runs against that copy (pytest -x -q,
 stopping at the first failure): a mutation is *caught* when some test fails and *survives*
 when all pass. A snippet that no longer exists in the source is reported as *stale* (the
-code moved: update the list). Not run by CI: it costs one suite run per survivor (~40 s)
+code moved: update the list). Not run by CI: it costs one suite run per survivor (~3 min)
 and a few seconds per caught one.
 
 Usage: python validation/mutation.py [NAME ...]      (default: all)
@@ -199,6 +199,153 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     "write_not_atomic": (
         "pinlin/files.py", "        yield tmp\n", "        yield target\n",
         "files written in place instead of through a temporary file"),
+    'assembly_curvature_sign': (
+        'pinlin/trajectory_assembly.py',
+        'step[dep] += x[:, 0] + curvature(back[z], past[z]) * (past[dep] + x[:, 1])',
+        'step[dep] += x[:, 0] - curvature(back[z], past[z]) * (past[dep] + x[:, 1])',
+        "a mechanism trajectory's assembly predictor subtracts the curvature term"),
+    'assembly_closed_tolerance_loose': (
+        'pinlin/trajectory_assembly.py',
+        'return (np.abs(phi) / self.cons.row_scale).max(axis=1, initial=0.0) <= ASSEMBLY_TOL',
+        'return (np.abs(phi) / self.cons.row_scale).max(axis=1, initial=0.0) <= 100 * ASSEMBLY_TO'
+        'L',
+        'trajectory points whose loops are open by up to 100 ASSEMBLY_TOL are kept as given'),
+    'mat_compressed_first_array_only': (
+        'pinlin/mat_check.py',
+        'if len(inner) != 1 or inner[0][0] != MI_MATRIX:',
+        'if not inner or inner[0][0] != MI_MATRIX:',
+        'a compressed .mat element is checked only up to its first array (the rest reaches scipy)'),
+    'mat_numeric_short_data_accepted': (
+        'pinlin/mat_check.py',
+        'any(t not in NUMERIC_TYPES or len(data) != count',
+        'any(t not in NUMERIC_TYPES or len(data) > count',
+        'a numeric .mat array with fewer entries than its dimensions say passes the check'),
+    'euler_position_block_without_avv': (
+        'pinlin/discretization.py',
+        'A_d[:nv, nv:] = dt * (Aqv @ (eye + dt * Avv))',
+        'A_d[:nv, nv:] = dt * Aqv',
+        "the semi-implicit Euler step's dq+/dv block forgets that v+ includes dt A_vv v"),
+    'stacked_euler_drift_without_dt2': (
+        'pinlin/discretization.py',
+        'f_d = np.concatenate([dt * f0[:, :nv] + dt * dt * (Aqv @ f0[:, nv:, None])[..., 0],',
+        'f_d = np.concatenate([dt * f0[:, :nv],',
+        "a trajectory's Euler drift misses the dt^2 A_qv f0_v position term"),
+    'stacked_zoh_block_off_by_one': (
+        'pinlin/discretization.py',
+        'hi = min(N, lo + ZOH_BLOCK)',
+        'hi = min(N, lo + ZOH_BLOCK - 1)',
+        'the blocked stacked ZOH skips the last point of each 128-point block'),
+    'zoh_survives_slowest_mode': (
+        'pinlin/discretization.py',
+        'growth = float(np.linalg.eigvals(A).real.max()) * dt',
+        'growth = float(np.linalg.eigvals(A).real.min()) * dt',
+        'the ZOH accuracy check is skipped when any (not every) mode decays within dt'),
+    'discrete_impulse_times_dt': (
+        'pinlin/response.py',
+        'U[0] += impulse / dt',
+        'U[0] += impulse * dt',
+        "a discrete model's impulse becomes a * dt instead of a / dt"),
+    'jordan_block_input_next_sample': (
+        'pinlin/response.py',
+        'forced = (np.einsum("kij,kj->ki", Gu[which], U[:-1])',
+        'forced = (np.einsum("kij,kj->ki", Gu[which], U[1:])',
+        'modal response: Jordan/Schur blocks hold the next sample instead of the current one'),
+    'exact_warning_on_shortest_step': (
+        'pinlin/response.py',
+        'warn_if_inaccurate(model.name, float(np.diff(t).max()), std.A,',
+        'warn_if_inaccurate(model.name, float(np.diff(t).min()), std.A,',
+        'exact response checks the rounding of its shortest step, not its longest'),
+    'stiff_criterion_or': (
+        'pinlin/simulation.py',
+        'if stiff > STIFF_LIMIT and rho > STIFF_RATIO * resolve:',
+        'if stiff > STIFF_LIMIT or rho > STIFF_RATIO * resolve:',
+        'simulate calls a problem stiff when either criterion holds'),
+    'held_sample_searchsorted_left': (
+        'pinlin/simulation.py',
+        'k = max(int(np.searchsorted(self.t, t, side="right")) - 1, 0)',
+        'k = max(int(np.searchsorted(self.t, t, side="left")) - 1, 0)',
+        'simulate holds the previous sample at each sample time'),
+    'horizon_decay_ignored': (
+        'pinlin/simulation.py',
+        'np.minimum(T, PERSIST / np.where(decay > 0, decay, 1.0))',
+        'T',
+        "simulate counts a decaying mode's periods over the whole horizon"),
+    'mechanism_initial_velocity_drops_v0': (
+        'pinlin/simulation_ode.py',
+        's = np.concatenate([dz, self.op.v[self.z] + dzdot])',
+        's = np.concatenate([dz, dzdot])',
+        "a mechanism's simulation starts from dz' alone, forgetting v0"),
+    'validity_atol_check_without_amplitude': (
+        'pinlin/validity.py',
+        'if NOISE_ATOL * atol / smallest >= tolerance:',
+        'if NOISE_ATOL * atol >= tolerance:',
+        "validity's atol noise check ignores the smallest amplitude"),
+    'direction_horizon_longest_unstable': (
+        'pinlin/validity.py',
+        'return min(unstable), period, "the shortest unstable mode horizon"',
+        'return max(unstable), period, "the shortest unstable mode horizon"',
+        "a direction's horizon takes the longest unstable horizon"),
+    'eigenvalue_condition_ignored': (
+        'pinlin/modal_coordinates.py',
+        'spread = kappa * worst',
+        'spread = kappa',
+        'diagonal modal form accepted on kappa(R) alone, eigenvalue conditions ignored'),
+    'closed_form_residual_unchecked': (
+        'pinlin/modal_coordinates.py',
+        'if left is None or result.residual <= RESIDUAL_LIMIT:',
+        'if True:',
+        'closed-form symmetric vectors kept whatever residual they leave'),
+    'block_gain_cluster_radius': (
+        'pinlin/frequency.py',
+        'radius = np.finfo(float).eps ** (1.0 / k) * k * max(1.0, float(np.abs(M).max()))',
+        'radius = np.finfo(float).eps * k * max(1.0, float(np.abs(M).max()))',
+        "a singular block's eigenvalue cluster radius without the eps^(1/k) of defective blocks"),
+    'cheap_bound_margin_inverted': (
+        'pinlin/eigensolvers.py',
+        'if worst_column * _EPS * frobenius <= EIGENVALUE_RISK / RISK_MARGIN:',
+        'if worst_column * _EPS * frobenius <= EIGENVALUE_RISK * RISK_MARGIN:',
+        "modal's cheap risk bound clears models up to 4x beyond the warning threshold"),
+    'sensitivity_moving_index': (
+        'pinlin/rest_schedule.py',
+        'candidates.append(int(moving[np.argmax(condition[moving])]))',
+        'candidates.append(int(np.argmax(condition[moving])))',
+        'the moving point checked for sensitivity indexed in the moving subset, not the trajector'
+        'y'),
+    'at_rest_mechanism_moving': (
+        'pinlin/trajectory_model.py',
+        'moving = bool(v.any() or a.any()) or (self.lam is not None and not rest)',
+        'moving = bool(v.any() or a.any()) or (self.lam is not None)',
+        "a mechanism's schedule point at rest comes back as a moving (non-equilibrium) model"),
+    'point_sizes_a_unchecked': (
+        'pinlin/linear_model.py',
+        'for key in ("a", "residual"):',
+        'for key in ("residual",):',
+        "an operating point's a of the wrong size is accepted"),
+    'graph_dissipative_output_factor_swapped': (
+        'pinlin/graph/matrix.py',
+        'factor = 1.0 / branch.value if in_tree else branch.value',
+        'factor = branch.value if in_tree else 1.0 / branch.value',
+        "a resistor's secondary output uses R where 1/R belongs and back"),
+    'moving_batch_cv_without_factor_two': (
+        'pinlin/formulations/moving_batch.py',
+        'rhs[:, nv:, nv:2 * nv] = -2.0 * Jv',
+        'rhs[:, nv:, nv:2 * nv] = -Jv',
+        'c_v = Phi_qq[v, .] instead of 2 Phi_qq[v, .] in the moving mechanism model'),
+    'moving_batch_output_without_W': (
+        'pinlin/formulations/moving_batch.py',
+        'return np.concatenate([Cq @ R + Cv @ W, Cv @ R], axis=2)',
+        'return np.concatenate([Cq @ R, Cv @ R], axis=2)',
+        "a moving mechanism trajectory's velocity outputs miss the W dz term"),
+    'loop_kernel_dgamma_drops_E_term': (
+        'pinlin/loop_kernels.py',
+        'dgamma = _cross(dO, lin) + _cross(Om, D) + _cross(E, V) + _cross(ang, dV)',
+        'dgamma = _cross(dO, lin) + _cross(Om, D) + _cross(ang, dV)',
+        'd gamma / dq without the E_k x V_k term (axis turning along v)'),
+    'least_norm_family_always': (
+        'pinlin/rest_schedule.py',
+        'family = [int(k) for k in np.flatnonzero(keep.sum(axis=1) < columns)]',
+        'family = [int(k) for k in np.flatnonzero(keep.sum(axis=1) <= columns)]',
+        'every schedule point of a mechanism reported as a least-norm (non-unique) split'),
 }
 
 
