@@ -181,12 +181,13 @@ def import_urdf(text: str, free_joint: str | None = None
         UnrepresentableBodyError: a refused link that nothing can be merged with.
     """
     links: list[str] = []
+    reasons: dict[str, str] = {}   # MuJoCo's own words for each refused link
     while True:
         spec = mujoco.MjSpec.from_string(text)
         if free_joint is not None:
             spec.worldbody.first_body().add_freejoint(name=free_joint)
         done: set[str] = set()
-        merges = [m for link in links for m in merge_one(spec, link, done)]
+        merges = [m for link in links for m in merge_one(spec, link, done, reasons.get(link))]
         try:
             spec.compile()
         except ValueError as exc:
@@ -205,6 +206,7 @@ def import_urdf(text: str, free_joint: str | None = None
                     "in the URDF (positive principal moments, each at most the sum of the "
                     "other two)") from None
             links.append(link)
+            reasons[link] = str(exc).splitlines()[0].removeprefix("Error: ")
             continue
         spec = mujoco.MjSpec.from_string(text)  # a spec that never failed, for the caller
         if free_joint is not None:
@@ -214,9 +216,10 @@ def import_urdf(text: str, free_joint: str | None = None
         return spec, tuple(merges)
 
 
-def merge_one(spec: mujoco.MjSpec, name: str, done: set[str]) -> list[Merge]:
+def merge_one(spec: mujoco.MjSpec, name: str, done: set[str], reason: str | None = None
+              ) -> list[Merge]:
     """Move inertials so that MuJoCo can accept link ``name``; the merges made (``name`` is
-    added to ``done``).
+    added to ``done``). ``reason``: MuJoCo's message refusing it, quoted if nothing merges.
 
     Raises:
         UnrepresentableBodyError: ``name`` moves and has nothing to merge with.
@@ -267,6 +270,6 @@ def merge_one(spec: mujoco.MjSpec, name: str, done: set[str]) -> list[Merge]:
             f"{_describe_inertia(body)} and nothing with mass is welded to it, while MuJoCo "
             "needs a mass and principal moments of inertia above 1e-15 (mjMINVAL) on every "
             f"moving body, each moment at most the sum of the other two ({why})"
-            + _alike(spec, name))
+            + _alike(spec, name) + (f" (MuJoCo: {reason})" if reason else ""))
     _set(body, *combine(parts))
     return merges

@@ -72,6 +72,26 @@ def test_unrepresentable_body_says_what_to_change():
         assert words in res.reason
 
 
+def test_a_refusal_quotes_mujocos_own_reason(tmp_path):
+    """A 1 mg pendulum bob of moments (5e-15, 8e-12, 8e-12) kg*m^2 meets mjMINVAL, yet MuJoCo
+    refuses it ('positive eigenvalues': its own eigen-decomposition of so small a tensor); the
+    refusal quoted only pinlin's explanation, which the moments contradict. MuJoCo's words
+    now come with it."""
+    urdf = (URDF_DIR / "pendulum.urdf").read_text()
+    inertia = '<inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>'
+    assert inertia in urdf and '<mass value="1.0"/>' in urdf
+    tiny = tmp_path / "tiny.urdf"
+    tiny.write_text(urdf.replace('<mass value="1.0"/>', '<mass value="1e-06"/>').replace(
+        inertia, '<inertia ixx="5e-15" ixy="0" ixz="0" iyy="8.33e-12" iyz="0" izz="8.33e-12"/>'))
+    spec = mujoco.MjSpec.from_string(tiny.read_text())
+    with pytest.raises(ValueError) as own:
+        spec.compile()
+    res = validate(str(tiny))
+    assert res.status == "MuJoCo refuses"
+    words = str(own.value).splitlines()[0].removeprefix("Error: ")
+    assert f"(MuJoCo: {words})" in res.reason, res.reason
+
+
 @pytest.mark.parametrize("target", ["solo12", "four_bar"])
 def test_visual_geoms_change_neither_mass_matrix_nor_gravity(target):
     """A floating robot (rotated base) and a mechanism: MuJoCo's M, bias forces and body
