@@ -142,12 +142,13 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "pin.SE3.Identity() if kind == \"anchor\" else",
         "mode pictures draw every contact anchor at the world origin"),
     "schedule_statics_without_springs": (
-        "pinlin/rest_schedule.py", "    held = _held_force(system, Q)[1]",
-        "    held = _held_force(system, Q)[0]",
+        "pinlin/rest_schedule.py",
+        "    _, held, scale = _held_force(system, Q)\n    S = system.input_matrix",
+        "    held, _, scale = _held_force(system, Q)\n    S = system.input_matrix",
         "a mechanism's gain schedule solves its holding inputs without the springs"),
     "schedule_never_refuses": (
         "pinlin/rest_schedule.py",
-        "    equilibrium = free[np.arange(N), worst] <= _tolerances(gravity)",
+        "    equilibrium = free[np.arange(N), worst] <= _tolerances(scale)",
         "    equilibrium = np.ones(N, dtype=bool)",
         "a gain schedule of an open chain calls every point an equilibrium"),
     "moving_fd_without_phi_qq_a": (
