@@ -96,6 +96,7 @@ _NPZ_MEMBERS = {
     "model": ({"A.npy", "meta.npy", "state_names.npy"}, {f"{k}.npy" for k in _MODEL_ARRAYS}),
     "history": ({"t.npy", "names.npy", "values.npy"}, {"t.npy", "names.npy", "values.npy"})}
 _JSON_START = b'{\n "state_names"'
+_KIND_NAMES = {"model": "model (linear or trajectory)", "history": "time history"}
 
 
 #: The text chunk every PNG pinlin writes carries (``metadata=PNG_METADATA`` for matplotlib),
@@ -170,6 +171,13 @@ def check_replaceable(path: Path, target: Path, kind: str | None = None) -> None
     if start and not (any(start.startswith(h) for h in heads)
                       and _pinlin_content(target, path.suffix.lower(), kind)):
         where = f" (a link to '{target}')" if target != path else ""
+        other = next((k for k in _NPZ_MEMBERS if k != kind
+                      and _pinlin_content(target, path.suffix.lower(), k)), None) \
+            if kind is not None and path.suffix.lower() == ".npz" else None
+        if other is not None:   # pinlin's, of another kind: say which
+            raise ModelFileError(path, f"exists{where} and holds a saved {_KIND_NAMES[other]}, "
+                                       f"not a {_KIND_NAMES[kind]}; pinlin does not replace "
+                                       "one with the other: move it or choose another name")
         raise ModelFileError(path, f"exists{where} and is not a {path.suffix} file of the "
                                    "kind pinlin writes; pinlin does not replace it: move it "
                                    "or choose another name")

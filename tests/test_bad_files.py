@@ -851,8 +851,10 @@ def test_a_history_and_a_model_never_replace_each_other(capfd, tmp_path, pendulu
     before = model_file.read_bytes(), history_file.read_bytes()
     capfd.readouterr()
     assert main(["simulate", "pendulum", "--t-end", "0.1", "--out", str(model_file)]) == 2
-    assert "model.npz: exists and is not a .npz file of the kind" in capfd.readouterr().err
-    with pytest.raises(pinlin.ModelFileError, match="not a .npz file of the kind"):
+    # named for what it is (it said "not a .npz file of the kind pinlin writes")
+    assert "model.npz: exists and holds a saved model (linear or trajectory), not a time " \
+           "history" in capfd.readouterr().err
+    with pytest.raises(pinlin.ModelFileError, match="holds a saved time history, not a model"):
         pendulum.save(history_file)
     assert (model_file.read_bytes(), history_file.read_bytes()) == before
     pendulum.save(model_file)      # each kind still replaces its own
