@@ -153,7 +153,8 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     part = partition(system, q0, jac)
     G = jac[part.rows]
     static = system.static_force(q0)
-    f = static - system.spring_torque(q0) if system.has_springs else static
+    spring = system.spring_torque(q0) if system.has_springs else None
+    f = static if spring is None else static - spring
     S = system.input_matrix
     # The statics use every row that can carry a force: the independent rows, and redundant
     # rows that are not identically zero (two feet holding one body: the split among them is
@@ -193,7 +194,7 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     lam = np.zeros(cons.size)
     lam[rows] = lam_k
     # The terms' size, not their sum f (which a passive equilibrium cancels to rounding).
-    scale = max(system.static_scale(q0, static), force_scale(held, supported))
+    scale = max(system.static_scale(q0, static, spring), force_scale(held, supported))
     tol = residual_tolerance(scale)
     worst = int(np.argmax(np.abs(residual))) if residual.size else 0
     equilibrium = bool(residual.size == 0 or abs(residual[worst]) <= tol)

@@ -224,10 +224,11 @@ def hold_at_rest(system: System, q0: np.ndarray, *, allow_non_equilibrium: bool 
     """
     nv = system.nv
     gravity = system.static_force(q0)
-    tau = gravity - system.spring_torque(q0) if system.has_springs else gravity
+    spring = system.spring_torque(q0) if system.has_springs else None
+    tau = gravity if spring is None else gravity - spring
     u0 = tau[system.actuated_columns]
     residual = np.zeros(nv)
-    tol = residual_tolerance(system.static_scale(q0, gravity))
+    tol = residual_tolerance(system.static_scale(q0, gravity, spring))
     free_at = system.unactuated
     worst, equilibrium = 0, True
     if free_at.size:
@@ -297,14 +298,15 @@ def at_state(system: System, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, *,
     held = system.input_matrix @ u0
     bias = system.rnea(q0, v0, np.zeros(nv))
     tau = held - bias
-    if system.has_springs:
-        tau += system.spring_torque(q0)
+    spring = system.spring_torque(q0) if system.has_springs else None
+    if spring is not None:
+        tau += spring
     if system.has_damping:
         tau -= system.damping * v0
     Minv = system.mass_inverse(q0) if mass_inverse is None else mass_inverse
     a0 = Minv @ tau
     # Measured against the terms (inputs, bias forces, springs), not against their sum tau.
-    tol = residual_tolerance(max(force_scale(held), system.static_scale(q0, bias)))
+    tol = residual_tolerance(max(force_scale(held), system.static_scale(q0, bias, spring)))
     moving = bool(np.any(v0))
     equilibrium = not moving and bool(np.abs(tau).max(initial=0.0) <= tol)
     note = (f"state given (solve = \"none\"): |v0| = {np.sqrt(v0 @ v0):.6g}, "

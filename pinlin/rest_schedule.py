@@ -127,15 +127,17 @@ def holding_inputs(system: System, Q: np.ndarray, allow_non_equilibrium: bool,
 def _held_force(system: System, Q: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(gravity (N, nv), gravity minus springs (N, nv), the statics' scale (N,)) at every
-    configuration [N*m or N]; the scale as :meth:`pinlin.System.static_scale` gives it."""
+    configuration [N*m or N]; the scale as :meth:`pinlin.System.static_scale` gives it (its
+    force reference included, which the schedule's tolerance had left out: a point the
+    single call accepted was refused)."""
     N, nv = Q.shape[0], system.nv
     gravity = np.empty((N, nv))
     for k in range(N):
         gravity[k] = system.static_force(Q[k])
     if system.rotation is not None:
         scale = np.array([system.static_scale(Q[k], gravity[k]) for k in range(N)])
-    else:
-        scale = np.abs(gravity).max(axis=1, initial=0.0)
+    else:   # static_scale without rotation, for all points at once
+        scale = np.maximum(system.force_reference, np.abs(gravity).max(axis=1, initial=0.0))
     if not system.has_springs:
         return gravity, gravity, scale
     held = gravity.copy()

@@ -270,10 +270,12 @@ class System:
         return pin.rnea(self.kin_model, self.kin_data, self.kin_q(q), self.kin_v(z),
                         self._kin_a(z))[1:].copy()
 
-    def static_scale(self, q: np.ndarray, static: np.ndarray) -> float:
+    def static_scale(self, q: np.ndarray, static: np.ndarray,
+                     spring: np.ndarray | None = None) -> float:
         """The size of the generalized forces in the statics at ``q`` [N*m or N]: the largest
         of gravity and, when rotating, the centrifugal force, each on its own, of the springs
-        (``static``: :meth:`static_force` at q), and of :attr:`force_reference`. A residual of
+        (``static``: :meth:`static_force` at q; ``spring``: :meth:`spring_torque` at q when
+        the caller has it), and of :attr:`force_reference`. A residual of
         the statics is measured against it: the terms can cancel (a passive equilibrium) or
         vanish (a pendulum hanging straight down), but rounding scales with their size, and
         so does what counts as zero; nothing in it is absolute, so that a robot of
@@ -285,7 +287,9 @@ class System:
             scale = max(scale, float(np.abs(gravity).max(initial=0.0)),
                         float(np.abs(static - gravity).max(initial=0.0)))
         if self.has_springs:
-            scale = max(scale, float(np.abs(self.spring_torque(q)).max(initial=0.0)))
+            if spring is None:
+                spring = self.spring_torque(q)
+            scale = max(scale, float(np.abs(spring).max(initial=0.0)))
         return scale
 
     def rnea(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:

@@ -524,3 +524,19 @@ def test_a_schedule_with_unique_holding_inputs_reports_no_least_norm_points():
         single = pinlin.linearize(scene, q=traj.q[k])
         assert not any("not unique" in note for note in single.operating_point.notes)
     assert "least_norm_points" not in traj.info
+
+
+def test_a_schedule_point_where_gravity_vanishes_keeps_the_single_calls_verdict():
+    """The double pendulum hanging with its unactuated elbow 1e-12 rad off: gravity on it is
+    2e-12 N*m, within 1e-9 of the most gravity can exert (the system's force reference), so
+    the single call calls it an equilibrium. The schedule measured the residual against the
+    gravity at the point alone (2e-12) and refused it."""
+    scene = pinlin.Scene.from_dict({"urdf": str(URDF_DIR / "double_pendulum.urdf"),
+                                    "effects": {"gravity": [0.0, 0.0, -9.81]},
+                                    "inputs": {"actuated": ["shoulder"]}})
+    q = np.array([0.0, 1e-12])
+    single = pinlin.linearize(scene, q=q)
+    assert single.operating_point.equilibrium
+    traj = pinlin.linearize_trajectory(scene, q[None])
+    assert traj.info["at_rest"]
+    np.testing.assert_array_equal(traj.A[0], single.A)
