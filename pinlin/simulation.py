@@ -26,7 +26,6 @@ oscillations do not count: every method must resolve them. A horizon of more tha
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,7 +38,7 @@ from .formulations.constrained import constrained_effects
 from .linearization import _system, operating_point
 from .operating_point import OperatingPoint
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
-from .signals import Signal
+from .simulation_inputs import Inputs
 from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain
 from .system import System
 
@@ -66,7 +65,7 @@ class Simulation:
             linear model of a mechanism); equal to ``x`` for an open chain.
         q: (N, nq) configurations (Pinocchio convention, quaternions [x, y, z, w]).
         v: (N, nv) velocities [rad/s or m/s] (a free flyer's in its own frame).
-        u: (N, nu) inputs applied, u0 + du [N*m or N].
+        u: (N, nu) inputs applied, u0 + du (the feedback's share included) [N*m or N].
         y: (N, p) outputs: the linear model's y plus its ``operating_point.y``, i.e. frame
             positions in the world [m], joint values ``difference(neutral, q)`` and
             velocities; the state (``x``, or ``z`` for a mechanism) when the scene names none.
@@ -100,60 +99,6 @@ class Simulation:
     info: dict[str, Any] = field(default_factory=dict)
 
 
-# ------------------------------------------------------------------------------------------------
-class _Inputs:
-    """u0 + du(t): none, a callable, or samples held from t_k to t_(k+1) (zero-order hold)."""
-
-    def __init__(self, u: object, t: np.ndarray, u0: np.ndarray,
-                 names: tuple[str, ...] = ()) -> None:
-        nu = u0.size
-        self.u0, self.t = u0, t
-        self.samples: np.ndarray | None = None
-        self.function: Callable[[float], np.ndarray] | None = None
-        self.breaks = np.zeros(0)
-        if u is None:
-            return
-        if isinstance(u, Signal):   # steps and sinusoids: u(t) = Re sum_j c_j e^{mu_j t}
-            impulse, c, mu = u.resolve(names, 0.0)
-            if np.any(impulse):
-                raise ArgumentError("u", "an impulse is a jump of the velocities: give it "
-                                         "in the initial deviation dx0 (its velocity part "
-                                         "M^-1 B a), or use pinlin.response for the linear "
-                                         "model")
-            self.function = lambda tk: (np.exp(tk * mu) @ c.T).real
-            return
-        if callable(u):
-            self.function = u
-            self.at(float(t[0]))  # checks the shape once
-            return
-        samples = real_array(u, "u", f"a callable u(t) -> ({nu},) or an array of real "
-                                     f"numbers of shape ({t.size}, {nu})")
-        if samples.ndim == 1 and nu == 1:
-            samples = samples[:, None]
-        if samples.shape != (t.size, nu):
-            raise ArgumentError("u", f"expected an array of shape (N, nu) = ({t.size}, {nu}) "
-                                     f"(one row per time), got shape {samples.shape}")
-        if not np.all(np.isfinite(samples)):
-            raise ArgumentError("u", "contains NaN or inf")
-        self.samples = samples
-        change = np.flatnonzero(np.any(samples[1:] != samples[:-1], axis=1)) + 1
-        self.breaks = t[change]
-
-    def at(self, t: float) -> np.ndarray:
-        """u0 + du(t) [N*m or N] (samples: the one held at t)."""
-        if self.samples is not None:
-            k = max(int(np.searchsorted(self.t, t, side="right")) - 1, 0)
-            return self.u0 + self.samples[k]
-        if self.function is None:
-            return self.u0
-        du = real_array(self.function(t), "u", f"u(t) to return {self.u0.size} real "
-                                               f"numbers (at t = {t:g} s)").reshape(-1)
-        if du.size != self.u0.size or not np.all(np.isfinite(du)):
-            raise ArgumentError("u", f"u(t) must return {self.u0.size} finite numbers, got "
-                                     f"{du!r:.80} at t = {t:g} s")
-        return self.u0 + du
-
-
 #: Periods of the fastest oscillation or growth (max(|Im lambda|, Re lambda) / 2 pi of the
 #: Jacobian at the start, times the part of the horizon T the mode lasts, min(T,
 #: PERSIST / decay rate)) beyond which a horizon is refused: any integrator, implicit too,
@@ -162,18 +107,30 @@ class _Inputs:
 MAX_CYCLES = 1e5
 
 
-def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
+def model_state(dyn: OpenChain | Mechanism, s: np.ndarray) -> np.ndarray:
+    """The linear model's state x = [difference(q0, q); v - v0] (2 nv) at the integrator's
+    state ``s`` (the feedback reads it)."""
+    q, v = dyn.state(s)
+    op = dyn.op
+    return np.concatenate([pin.difference(dyn.model, op.q, q), v - op.v])
+
+
+def _choose_method(dyn: Any, s0: np.ndarray, inputs: Inputs, t: np.ndarray
                    ) -> tuple[str, float, str]:
     """(method, rho * T, why) by the stiffness criterion of the module docstring."""
     t0, T = float(t[0]), float(t[-1] - t[0])
     n = s0.size
     J = np.zeros((n, n))
     u = inputs.at(t0)
+
+    def rhs(s: np.ndarray) -> np.ndarray:   # with feedback: the closed loop's Jacobian
+        return dyn.rhs(t0, s, inputs.total(t0, lambda: model_state(dyn, s), u))
+
     for k in range(n):
         h = 1e-6 * max(1.0, abs(s0[k]))
         e = np.zeros(n)
         e[k] = h
-        J[:, k] = (dyn.rhs(t0, s0 + e, u) - dyn.rhs(t0, s0 - e, u)) / (2 * h)
+        J[:, k] = (rhs(s0 + e) - rhs(s0 - e)) / (2 * h)
     dyn.state(s0)  # back to the initial configuration (mechanisms warm-start from it)
     lam = np.linalg.eigvals(J) if n else np.zeros(0)
     # The motion every method must resolve, mode by mode: its oscillation or growth rate,
@@ -204,7 +161,7 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: _Inputs, t: np.ndarray
     return method, stiff, why
 
 
-def _integrate(dyn: Any, inputs: _Inputs, t: np.ndarray, s0: np.ndarray, method: str,
+def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: str,
                rtol: float, atol: float) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """(q, v) at the times t, and the solver statistics. The solver is restarted (with its
     last step size) where the coordinates change (dyn.after_step) or a held input changes."""
@@ -224,7 +181,7 @@ def _integrate(dyn: Any, inputs: _Inputs, t: np.ndarray, s0: np.ndarray, method:
         u_held = inputs.at(ts) if inputs.function is None else None
 
         def fun(tt: float, ss: np.ndarray, u_held: np.ndarray | None = u_held) -> np.ndarray:
-            return dyn.rhs(tt, ss, u_held if u_held is not None else inputs.at(tt))
+            return dyn.rhs(tt, ss, inputs.total(tt, lambda: model_state(dyn, ss), u_held))
 
         options: dict[str, Any] = {"rtol": rtol, "atol": atol}
         if h is not None:
@@ -280,13 +237,15 @@ def _outputs(system: System, Q: np.ndarray, V: np.ndarray) -> np.ndarray | None:
 
 
 def _energy(system: System, op: OperatingPoint, Q: np.ndarray, V: np.ndarray,
-            inputs: _Inputs) -> tuple[np.ndarray | None, str]:
+            inputs: Inputs) -> tuple[np.ndarray | None, str]:
     """Total mechanical energy [J] (Simulation.energy) and what it contains or why it is
     undefined."""
     if system.rotation is not None:
         return None, "undefined: the scene rotates (a non-inertial frame)"
     if inputs.samples is not None or inputs.function is not None:
         return None, "undefined: inputs du(t) do work that is not a potential"
+    if inputs.feedback is not None:
+        return None, "undefined: the feedback's inputs do work that is not a potential"
     loaded = np.flatnonzero(op.u)
     joint_nv = np.zeros(system.nv, dtype=int)
     for j in system.joints.values():
@@ -353,7 +312,8 @@ def _tolerance(name: str, value: object) -> float:
 
 
 def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: object = None, *,
-             q0: np.ndarray | None = None, v0: np.ndarray | None = None,
+             feedback: object = None, q0: np.ndarray | None = None,
+             v0: np.ndarray | None = None,
              rtol: float = 1e-10, atol: float = 1e-12, method: str | None = None
              ) -> Simulation:
     """The scene's nonlinear motion about its operating point (module docstring).
@@ -371,6 +331,12 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             array, row k held from t[k] to t[k+1], or a :class:`~pinlin.Signal` of steps
             and sinusoids (``pinlin.step``, ``pinlin.harmonic``; an impulse is refused: it
             is a jump of the initial velocities). Default none.
+        feedback: State feedback added to the inputs (:mod:`pinlin.simulation_inputs`): a
+            gain matrix K, du = -K x with x the state of the linear model about the point
+            simulated (shape (nu, 2 nv); for a mechanism (nu, 2 nz) on its independent
+            coordinates [dz; dz'], or (nu, 2 nv) on all), as ``control.lqr(model.A,
+            model.B, Q, R)[0]`` returns it; or a callable feedback(t, x) -> (nu,) [N*m or N]
+            of the time [s] and that state (2 nz for a mechanism). Default none (open loop).
         q0, v0: The point to simulate about instead of the scene's, resolved as
             ``pinlin.operating_point(scene, q=q0, v=v0)``: q0 alone (nq) keeps the scene's
             ``solve`` (u0 holds q0 at rest); with v0 (nv) [rad/s or m/s] the state is given
@@ -411,7 +377,9 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
                 raise ArgumentError("dx0", f"has an entry of size {np.abs(part).max():.3g}; "
                                            f"its {what} are limited to |x| <= {limit:g}")
     s0, notes = dyn.initial_state(deviation)
-    inputs = _Inputs(u, grid, op.u, system.input_names)
+    inputs = Inputs(u, grid, op.u, system.input_names)
+    cols = dyn.columns if isinstance(dyn, Mechanism) else np.arange(nv)
+    inputs.close_loop(feedback, cols, nv, model_state(dyn, s0))
     chosen, stiffness, why = _choose_method(dyn, s0, inputs, grid)  # refuses endless ones
     if method is None:
         method = chosen
@@ -420,7 +388,6 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     Q, V, stats = _integrate(dyn, inputs, grid, s0, method, rtol, atol)
 
     X = np.hstack([np.array([pin.difference(system.model, op.q, q) for q in Q]), V - op.v])
-    cols = dyn.columns if isinstance(dyn, Mechanism) else np.arange(nv)
     Z = np.hstack([X[:, cols], X[:, nv + cols]])
     drift = np.array([dyn.drift(q, v) for q, v in zip(Q, V, strict=True)]) \
         if isinstance(dyn, Mechanism) else np.zeros((grid.size, 2))
@@ -431,7 +398,8 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     if Y is None:
         Y = Z
     energy, energy_note = _energy(system, op, Q, V, inputs)
-    U = np.array([inputs.at(float(ti)) for ti in grid]).reshape(grid.size, op.u.size)
+    U = np.array([inputs.total(float(ti), lambda x=x: x) for ti, x in zip(grid, X, strict=True)]
+                 ).reshape(grid.size, op.u.size)
     info = {"solver": f"scipy.integrate.{method}", "method": method, "method_reason": why,
             "stiffness": stiffness, "rtol": rtol, "atol": atol, **stats,
             "coordinates": ("independent (dz, z'), loops closed by Newton at every evaluation"
@@ -439,6 +407,9 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
                             "chart (dq, v) about a reference re-centred past "
                             f"{CHART_LIMIT:g} rad" if system.nq != nv else "(dq, v)"),
             "energy": energy_note, "notes": notes,
+            "feedback": ("none" if inputs.feedback is None else
+                         "a callable of (t, x)" if callable(feedback) else
+                         f"du = -K x, K of shape {np.shape(feedback)}"),
             "effects": constrained_effects(system)}
     return Simulation(
         t=read_only(grid), x=read_only(X), z=read_only(Z), q=read_only(Q), v=read_only(V),

@@ -347,6 +347,21 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'family = [int(k) for k in np.flatnonzero(keep.sum(axis=1) < columns)]',
         'family = [int(k) for k in np.flatnonzero(keep.sum(axis=1) <= columns)]',
         'every schedule point of a mechanism reported as a least-norm (non-unique) split'),
+    'feedback_sign': (
+        'pinlin/simulation_inputs.py',
+        '            self.feedback = lambda t, x: -(gain @ x)',
+        '            self.feedback = lambda t, x: gain @ x',
+        'a gain over all coordinates applied as du = +K x'),
+    'feedback_open_loop_stiffness': (
+        'pinlin/simulation.py',
+        '        return dyn.rhs(t0, s, inputs.total(t0, lambda: model_state(dyn, s), u))',
+        '        return dyn.rhs(t0, s, u)',
+        'the stiffness criterion judges the open loop, not the closed one'),
+    'feedback_wrong_columns': (
+        'pinlin/simulation_inputs.py',
+        '            self.feedback = lambda t, x: -(gain @ x[picked])',
+        '            self.feedback = lambda t, x: -(gain @ x[:2 * nz])',
+        "a mechanism's gain reads the first 2 nz states instead of [dz; dz']"),
 }
 
 

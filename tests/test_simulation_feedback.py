@@ -1,0 +1,174 @@
+"""pinlin.simulate with state feedback (``feedback=K`` or a callable of (t, x)) against
+references from outside the code under test: a hand-written ODE of the inverted pendulum under
+the same control law (solve_ivp), the linear closed loop expm((A - B K) t) x0 for small
+motions (the nonlinear remainder quadratic in the amplitude), and the stiffness a high-gain
+loop adds (which the open loop does not have)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.integrate
+import scipy.linalg as sla
+from conftest import URDF_DIR
+from scipy.signal import place_poles
+
+import pinlin
+from pinlin.scene import bundled_scenes
+
+G = 9.81
+#: urdf/pendulum.urdf: 1 kg sphere (r = 0.05 m) 1 m below the hinge: J = 1 + 2/5 * 0.05^2.
+J_PENDULUM = 1.001
+MGL = 1.0 * G * 1.0   # [N*m]: m g l
+
+
+def _pendulum() -> pinlin.Scene:
+    return pinlin.Scene.from_urdf(URDF_DIR / "pendulum.urdf",
+                                  effects={"gravity": [0.0, 0.0, -G]})
+
+
+def _gain(model: pinlin.LinearModel, poles: list[float]) -> np.ndarray:
+    """A state-feedback gain placing the closed loop's poles (scipy's place_poles: u = -K x)."""
+    return place_poles(model.A, model.B, poles).gain_matrix
+
+
+def test_inverted_pendulum_held_up_by_its_gain_as_by_hand():
+    """Upright (q0 = pi, an unstable equilibrium: lambda = +-3.13 1/s) and 0.6 rad off, the
+    pendulum is brought back by du = -K x with K placing the poles at -3 and -4. Reference:
+    J x'' = m g l sin(x) + du, du = -K [x, x'], by solve_ivp at tolerances 1e-12. Agreement
+    to 1e-8 rad: both integrate at rtol 1e-10 over a motion that decays (no error growth),
+    with the same law; a missing or mis-signed feedback falls over (x reaches pi)."""
+    scene = _pendulum()
+    model = pinlin.linearize(scene, q=[np.pi])
+    K = _gain(model, [-3.0, -4.0])
+    t = np.linspace(0.0, 4.0, 81)
+    sim = pinlin.simulate(scene, t, dx0=[0.6, 0.0], q0=[np.pi], feedback=K)
+
+    def rhs(_, s):
+        du = -(K @ s)[0]
+        return [s[1], (MGL * np.sin(s[0]) + du) / J_PENDULUM]
+
+    ref = scipy.integrate.solve_ivp(rhs, (0.0, 4.0), [0.6, 0.0], t_eval=t, method="DOP853",
+                                    rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(sim.x[:, 0], ref.y[0], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(sim.x[:, 1], ref.y[1], rtol=0, atol=1e-8)
+    assert abs(sim.x[-1, 0]) < 0.02                               # held up
+    # u records the law: u0 + du at every output time (u0 = 0 upright, to rounding).
+    np.testing.assert_allclose(sim.u[:, 0], -(sim.x @ K.T)[:, 0], rtol=0, atol=1e-12)
+    assert sim.energy is None and "feedback" in sim.info["energy"]
+    assert sim.info["feedback"] == "du = -K x, K of shape (1, 2)"
+    # The same law as a callable: the same right-hand side, the same steps.
+    by_hand = pinlin.simulate(scene, t, dx0=[0.6, 0.0], q0=[np.pi],
+                              feedback=lambda tk, x: -K @ x)
+    np.testing.assert_array_equal(by_hand.x, sim.x)
+    # Without it, the pendulum falls.
+    fallen = pinlin.simulate(scene, t[:41], dx0=[0.6, 0.0], q0=[np.pi])
+    assert np.abs(fallen.x[:, 0]).max() > 2.0
+
+
+def test_time_varying_law_and_open_loop_inputs_add_up():
+    """A gain switched on at t = 1 s (a callable of t) plus a constant open-loop torque: the
+    motion is the hand-written ODE's under the same sum."""
+    scene = _pendulum()
+    K = np.array([[30.0, 8.0]])
+    t = np.linspace(0.0, 3.0, 61)
+
+    def law(tk, x):
+        return -(K @ x) * (tk >= 1.0)
+
+    sim = pinlin.simulate(scene, t, dx0=[0.3, 0.0], u=lambda tk: [0.5], feedback=law,
+                          rtol=1e-11, atol=1e-13)
+
+    def rhs(tk, s):
+        du = 0.5 - (K @ s)[0] * (tk >= 1.0)
+        return [s[1], (-MGL * np.sin(s[0]) + du) / J_PENDULUM]
+
+    # The switch at t = 1 s is inside a step of either integrator: integrate the two pieces.
+    a = scipy.integrate.solve_ivp(rhs, (0.0, 1.0), [0.3, 0.0], method="DOP853", rtol=1e-12,
+                                  atol=1e-14, dense_output=True)
+    b = scipy.integrate.solve_ivp(rhs, (1.0, 3.0), a.y[:, -1], method="DOP853", rtol=1e-12,
+                                  atol=1e-14, dense_output=True)
+    ref = np.array([a.sol(tk) if tk <= 1.0 else b.sol(tk) for tk in t])
+    # The switch is a jump of the acceleration inside one of pinlin's steps (its step size
+    # control sees it as a local error and shrinks the step there): 1e-6 rad, not 1e-9.
+    np.testing.assert_allclose(sim.x, ref, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(sim.u[:, 0], 0.5 - (sim.x @ K.T)[:, 0] * (t >= 1.0), atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["ur5_arm", "four_bar", "delta"])
+def test_small_motions_follow_the_linear_closed_loop(name):
+    """x_nl - expm((A - B K) t) x0 is the quadratic remainder (slope 2 in the amplitude): the
+    nonlinear robot under the gain designed on its linear model (LQR, python-control) follows
+    the linear closed loop. For a mechanism x is [dz; dz'] (K of shape (nu, 2 nz)), and the
+    same gain spread over all coordinates (zero on the dependent ones) drives the same
+    motion."""
+    control = pytest.importorskip("control")
+    model = pinlin.linearize(name)
+    n = model.n_states
+    K = control.lqr(model.A, model.B, np.eye(n), 1e-2 * np.eye(model.B.shape[1]))[0]
+    closed = model.A - model.B @ K
+    direction = np.random.default_rng(5).standard_normal(n)
+    direction /= np.abs(direction).max()
+    t = np.linspace(0.0, 0.5, 21)
+    amplitudes = np.array([1e-3, 2e-3, 4e-3])
+    errors = []
+    for a in amplitudes:
+        sim = pinlin.simulate(name, t, dx0=a * direction, feedback=K)
+        linear = np.array([sla.expm(closed * ti) @ (a * direction) for ti in t])
+        errors.append(np.abs(sim.z - linear).max())
+    slope = np.polyfit(np.log(amplitudes), np.log(errors), 1)[0]
+    assert 1.9 < slope < 2.1
+    # The remainder, not the integrator (rtol 1e-10 of |x| ~ 1e-3, atol 1e-12, over some
+    # 50 steps: ~1e-10), is measured; the loop damps the motion, so the remainder is small.
+    assert errors[0] > 1e2 * 1e-10
+    system = pinlin.Scene.load(bundled_scenes()[name]).system
+    nv = system.nv
+    if n < 2 * nv:   # a mechanism: the gain over all coordinates
+        cols = [system.coordinate_names.index(s.removeprefix("q:"))
+                for s in model.state_names[:n // 2]]
+        wide = np.zeros((K.shape[0], 2 * nv))
+        wide[:, cols] = K[:, :n // 2]
+        wide[:, [nv + c for c in cols]] = K[:, n // 2:]
+        again = pinlin.simulate(name, t, dx0=amplitudes[0] * direction, feedback=wide)
+        first = pinlin.simulate(name, t, dx0=amplitudes[0] * direction, feedback=K)
+        # The same law; its sums run in another order (rounding), which moves the adaptive
+        # steps: the two runs agree within the integrator's tolerance (~1e-10, as above).
+        np.testing.assert_allclose(again.z, first.z, rtol=0, atol=1e-10)
+
+
+def test_a_high_gain_loop_is_stiff():
+    """A velocity gain of 500 N*m*s/rad makes the closed loop decay at ~500 1/s: over 10 s the
+    stiffness criterion (rho T > 1e3) picks Radau, though the open loop (+-3.13j) is not stiff;
+    the motion is the hand-written ODE's."""
+    scene = _pendulum()
+    K = np.array([[0.0, 500.0]])
+    t = np.linspace(0.0, 10.0, 11)
+    sim = pinlin.simulate(scene, t, dx0=[0.0, 1.0], feedback=K, rtol=1e-9, atol=1e-12)
+    assert sim.info["method"] == "Radau", sim.info["method_reason"]
+
+    def rhs(_, s):
+        return [s[1], (-MGL * np.sin(s[0]) - 500.0 * s[1]) / J_PENDULUM]
+
+    ref = scipy.integrate.solve_ivp(rhs, (0.0, 10.0), [0.0, 1.0], t_eval=t, method="Radau",
+                                    rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(sim.x, ref.y.T, rtol=0, atol=1e-8)
+    assert pinlin.simulate(scene, t, dx0=[0.0, 1.0]).info["method"] == "DOP853"
+
+
+@pytest.mark.parametrize("feedback, match", [
+    (np.zeros((1, 3)), r"shape \(1, 2\) \(inputs x the linear model's states"),
+    (np.zeros((2, 2)), r"got shape \(2, 2\)"),
+    (np.array([[np.nan, 0.0]]), "NaN or inf"),
+    ([["1", "2"]], "got text"),
+    (lambda t, x: [1.0, 2.0], r"must return 1 finite numbers, got array\(\[1\., 2\.\]\)"),
+    (lambda t, x: [np.inf], "must return 1 finite numbers"),
+])
+def test_bad_feedback(feedback, match):
+    with pytest.raises(pinlin.ArgumentError, match=match):
+        pinlin.simulate("pendulum", [0.0, 1.0], dx0=[0.1, 0.0], feedback=feedback)
+
+
+def test_a_mechanisms_gain_sizes_are_named():
+    """four_bar: nv = 3, nz = 1: a gain is (1, 2) or (1, 6)."""
+    with pytest.raises(pinlin.ArgumentError, match=r"shape \(1, 2\) or \(1, 6\)"):
+        pinlin.simulate("four_bar", [0.0, 1.0], feedback=np.zeros((1, 4)))
