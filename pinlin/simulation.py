@@ -75,11 +75,13 @@ class Simulation:
             gravity + springs, minus the work of the constant inputs u0, u0 . difference(q0,
             q) on their 1-DoF joints; constant without damping, non-increasing with it. None
             when not defined: a rotating scene (a non-inertial frame), inputs du given, or u0
-            on a multi-DoF joint (``info["energy"]`` says why).
+            on a multi-DoF joint, feedback (``info["energy"]`` says why).
         operating_point: The point simulated about (q0, v0, u0).
         state_names, independent_names, input_names, output_names: Column names of x, z, u, y.
         info: solver, method and why, rtol, atol, nfev, njev, nlu, steps (accepted),
-            restarts (chart, partition, input), stiffness (rho * T), notes.
+            restarts (chart, partition, input), stiffness (rho * T), coordinates, energy
+            (what it holds, or why it is None), feedback (none, a gain of shape (nu, n) or a
+            callable), effects, notes.
     """
 
     t: np.ndarray
@@ -107,14 +109,6 @@ class Simulation:
 MAX_CYCLES = 1e5
 
 
-def model_state(dyn: OpenChain | Mechanism, s: np.ndarray) -> np.ndarray:
-    """The linear model's state x = [difference(q0, q); v - v0] (2 nv) at the integrator's
-    state ``s`` (the feedback reads it)."""
-    q, v = dyn.state(s)
-    op = dyn.op
-    return np.concatenate([pin.difference(dyn.model, op.q, q), v - op.v])
-
-
 def _choose_method(dyn: Any, s0: np.ndarray, inputs: Inputs, t: np.ndarray
                    ) -> tuple[str, float, str]:
     """(method, rho * T, why) by the stiffness criterion of the module docstring."""
@@ -124,7 +118,7 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: Inputs, t: np.ndarray
     u = inputs.at(t0)
 
     def rhs(s: np.ndarray) -> np.ndarray:   # with feedback: the closed loop's Jacobian
-        return dyn.rhs(t0, s, inputs.total(t0, lambda: model_state(dyn, s), u))
+        return dyn.rhs(t0, s, inputs.total(t0, lambda: dyn.model_state(s), u))
 
     for k in range(n):
         h = 1e-6 * max(1.0, abs(s0[k]))
@@ -144,10 +138,14 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: Inputs, t: np.ndarray
     if not cycles <= MAX_CYCLES:
         k = int(np.argmax(rates * lasts))
         what = "oscillation" if abs(lam[k].imag) >= lam[k].real else "growing motion"
-        raise ArgumentError("t", f"the horizon {T:.3g} s spans {cycles:.3g} periods of the "
-                                 f"fastest {what} ({rates[k]:.3g} rad/s at the start): more than "
-                                 f"{MAX_CYCLES:g}, which an integrator must resolve step by "
-                                 "step (~10 steps a period); simulate a shorter horizon")
+        closed = inputs.feedback is not None
+        raise ArgumentError("feedback" if closed else "t",
+                            f"the horizon {T:.3g} s spans {cycles:.3g} periods of the fastest "
+                            f"{what} ({rates[k]:.3g} rad/s at the start"
+                            f"{', of the closed loop' if closed else ''}): more than "
+                            f"{MAX_CYCLES:g}, which an integrator must resolve step by step "
+                            "(~10 steps a period); simulate a shorter horizon"
+                            + (" or lower the gain" if closed else ""))
     rho = max(0.0, float(decay.max(initial=0.0)))
     stiff = rho * T
     resolve = 2.0 * np.pi * cycles / T if T > 0 else 0.0   # the rate those periods average
@@ -181,7 +179,7 @@ def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: 
         u_held = inputs.at(ts) if inputs.function is None else None
 
         def fun(tt: float, ss: np.ndarray, u_held: np.ndarray | None = u_held) -> np.ndarray:
-            return dyn.rhs(tt, ss, inputs.total(tt, lambda: model_state(dyn, ss), u_held))
+            return dyn.rhs(tt, ss, inputs.total(tt, lambda: dyn.model_state(ss), u_held))
 
         options: dict[str, Any] = {"rtol": rtol, "atol": atol}
         if h is not None:
@@ -336,7 +334,13 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             simulated (shape (nu, 2 nv); for a mechanism (nu, 2 nz) on its independent
             coordinates [dz; dz'], or (nu, 2 nv) on all), as ``control.lqr(model.A,
             model.B, Q, R)[0]`` returns it; or a callable feedback(t, x) -> (nu,) [N*m or N]
-            of the time [s] and that state (2 nz for a mechanism). Default none (open loop).
+            of the time [s] and that state (2 nz for a mechanism); or a pair (K, model), the
+            gain with the model it was designed on, whose state names are checked (a
+            canonical model's [p; q] or an orthonormal basis are refused). x is measured from
+            the point simulated, (q0, v0): with v0 given the law steers back to that state.
+            The integrator calls a callable at trial states too (its stages, rejected steps,
+            the stiffness test), not in time order: make it a pure function of (t, x); an
+            exception it raises after the first call reaches the caller unchanged.
         q0, v0: The point to simulate about instead of the scene's, resolved as
             ``pinlin.operating_point(scene, q=q0, v=v0)``: q0 alone (nq) keeps the scene's
             ``solve`` (u0 holds q0 at rest); with v0 (nv) [rad/s or m/s] the state is given
@@ -379,7 +383,7 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     s0, notes = dyn.initial_state(deviation)
     inputs = Inputs(u, grid, op.u, system.input_names)
     cols = dyn.columns if isinstance(dyn, Mechanism) else np.arange(nv)
-    inputs.close_loop(feedback, cols, nv, model_state(dyn, s0))
+    inputs.close_loop(feedback, cols, nv, dyn.model_state(s0), system.state_names)
     chosen, stiffness, why = _choose_method(dyn, s0, inputs, grid)  # refuses endless ones
     if method is None:
         method = chosen
@@ -407,9 +411,7 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
                             "chart (dq, v) about a reference re-centred past "
                             f"{CHART_LIMIT:g} rad" if system.nq != nv else "(dq, v)"),
             "energy": energy_note, "notes": notes,
-            "feedback": ("none" if inputs.feedback is None else
-                         "a callable of (t, x)" if callable(feedback) else
-                         f"du = -K x, K of shape {np.shape(feedback)}"),
+            "feedback": inputs.feedback_note,
             "effects": constrained_effects(system)}
     return Simulation(
         t=read_only(grid), x=read_only(X), z=read_only(Z), q=read_only(Q), v=read_only(V),

@@ -19,6 +19,7 @@ import numpy as np
 
 from .arrays import real_array
 from .exceptions import ArgumentError
+from .linear_model import LinearModel
 from .signals import Signal
 
 #: Feedback: (t [s], x) -> du [N*m or N].
@@ -35,6 +36,7 @@ class Inputs:
         breaks: Times where a held sample changes [s] (the integrator restarts there).
         feedback: du_fb(t, x_full) with x_full the 2 nv state (the law's own columns picked),
             or None (open loop).
+        feedback_note: What the feedback is, for ``Simulation.info["feedback"]``.
     """
 
     def __init__(self, u: object, t: np.ndarray, u0: np.ndarray,
@@ -44,6 +46,7 @@ class Inputs:
         self.samples: np.ndarray | None = None
         self.function: Callable[[float], np.ndarray] | None = None
         self.feedback: Law | None = None
+        self.feedback_note = "none"
         self.breaks = np.zeros(0)
         if u is None:
             return
@@ -87,44 +90,52 @@ class Inputs:
                                      f"{du!r:.80} at t = {t:g} s")
         return self.u0 + du
 
-    def close_loop(self, feedback: object, columns: np.ndarray, nv: int,
-                   x0: np.ndarray) -> None:
+    def close_loop(self, feedback: object, columns: np.ndarray, nv: int, x0: np.ndarray,
+                   state_names: tuple[str, ...]) -> None:
         """Add the state feedback ``feedback`` (see the module docstring): a gain K of shape
         (nu, 2 nz) acting on the model's state x[cols] (``columns``: the coordinates z of a
-        mechanism, all nv for an open chain) or (nu, 2 nv) on the whole x, or a callable
+        mechanism, all nv for an open chain) or (nu, 2 nv) on the whole x; a pair (K, model)
+        whose model's state names are checked against those; or a callable
         feedback(t, x[cols]) -> (nu,). ``x0``: the initial 2 nv state, on which a callable is
-        tried once (its output checked)."""
+        tried once (its output checked); ``state_names``: the names of x's 2 nv entries."""
         if feedback is None:
             return
         nu, nz = self.u0.size, columns.size
+        if nu == 0:
+            raise ArgumentError("feedback", "the scene has no inputs to feed back to (its "
+                                            "inputs.actuated names no joint)")
         picked = np.concatenate([columns, nv + columns])
-        if callable(feedback):
-            law = feedback
-
-            def closed(t: float, x: np.ndarray) -> np.ndarray:
-                du = real_array(law(t, x[picked]), "feedback",
-                                f"feedback(t, x) to return {nu} real numbers (at t = {t:g} "
-                                "s)").reshape(-1)
-                if du.size != nu or not np.all(np.isfinite(du)):
-                    raise ArgumentError("feedback", f"feedback(t, x) must return {nu} finite "
-                                                    f"numbers, got {du!r:.80} at t = {t:g} s")
-                return du
-
-            self.feedback = closed
-            closed(float(self.t[0]), x0)
+        if callable(feedback) and not isinstance(feedback, tuple):
+            self.feedback = _law(feedback, picked, nu)
+            self.feedback_note = "a callable of (t, x)"
+            try:
+                self.feedback(float(self.t[0]), x0)
+            except (TypeError, ValueError) as exc:
+                raise ArgumentError("feedback", f"expected a function feedback(t, x) of the time "
+                                                f"[s] and the state (2 nz = {picked.size} "
+                                                f"numbers) returning {nu} inputs; calling it "
+                                                f"so raised {type(exc).__name__}: "
+                                                f"{str(exc):.120}") from exc
             return
         sizes = sorted({2 * nz, 2 * nv})
         what = " or ".join(f"({nu}, {n})" for n in sizes)
-        gain = real_array(feedback, "feedback", f"a gain matrix K of shape {what} (du = -K x) "
-                                                "or a callable feedback(t, x)")
+        if isinstance(feedback, tuple) and len(feedback) == 2 and \
+                isinstance(feedback[1], LinearModel):
+            feedback, designed = feedback
+            _check_states(designed, state_names, picked)
+        gain = real_array(feedback, "feedback", f"a gain matrix K of shape {what} (du = -K x), "
+                                                "a pair (K, model) or a callable "
+                                                "feedback(t, x)")
+        given = gain.shape
         if gain.ndim == 1 and nu == 1:
             gain = gain[None, :]
         if gain.ndim != 2 or gain.shape[0] != nu or gain.shape[1] not in sizes:
             raise ArgumentError("feedback", f"expected a gain matrix K of shape {what} "
                                             f"(inputs x the linear model's states: du = -K x), "
-                                            f"got shape {gain.shape}")
+                                            f"got shape {given}")
         if not np.all(np.isfinite(gain)):
             raise ArgumentError("feedback", "the gain matrix contains NaN or inf")
+        self.feedback_note = f"du = -K x, K of shape {gain.shape}"
         if gain.shape[1] == 2 * nv:
             self.feedback = lambda t, x: -(gain @ x)
         else:
@@ -138,6 +149,36 @@ class Inputs:
         if self.feedback is None:
             return base
         return base + self.feedback(t, x())
+
+
+def _law(law: Callable, picked: np.ndarray, nu: int) -> Law:
+    """``law(t, x[picked])`` with its output checked: nu finite real numbers [N*m or N]."""
+
+    def closed(t: float, x: np.ndarray) -> np.ndarray:
+        du = real_array(law(t, x[picked]), "feedback",
+                        f"feedback(t, x) to return {nu} real numbers (at t = {t:g} s)"
+                        ).reshape(-1)
+        if du.size != nu or not np.all(np.isfinite(du)):
+            raise ArgumentError("feedback", f"feedback(t, x) must return {nu} finite numbers, "
+                                            f"got {du!r:.80} at t = {t:g} s")
+        return du
+
+    return closed
+
+
+def _check_states(model: LinearModel, names: tuple[str, ...], picked: np.ndarray) -> None:
+    """Refuse a gain designed on a model whose states are not x = [dq; v - v0] (all 2 nv
+    ``names``) or its independent part (``picked``): a canonical model's momenta, an
+    orthonormal basis of a mechanism's nullspace, another robot."""
+    own = tuple(model.state_names)
+    if own in (tuple(names), tuple(names[k] for k in picked)):
+        return
+    raise ArgumentError("feedback", f"the gain was designed on model '{model.name}', whose "
+                                    f"states ({', '.join(own[:3])}{', ...' if len(own) > 3 else ''}"
+                                    f") are not the ones simulate feeds back: x = [dq; v - v0] "
+                                    f"({', '.join(names[k] for k in picked[:3])}, ...); design "
+                                    "it on the independent or penalty model with the "
+                                    "partitioned basis (pinlin.linearize's default)")
 
 
 __all__ = ["Inputs", "Law"]

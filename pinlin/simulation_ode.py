@@ -107,8 +107,27 @@ class OpenChain:
     def initial_state(self, dx0: np.ndarray) -> tuple[np.ndarray, list[str]]:
         if dx0.size != 2 * self.nv:
             raise ShapeError(f"dx0 must have 2 nv = {2 * self.nv} entries, got {dx0.size}")
-        self.q_ref = pin.integrate(self.model, self.op.q, dx0[:self.nv])
-        return np.concatenate([np.zeros(self.nv), self.op.v + dx0[self.nv:]]), []
+        dq = dx0[:self.nv]
+        if beyond_chart(dq, self.angles):   # a rotation beyond the chart: centred at q
+            self.q_ref = pin.integrate(self.model, self.op.q, dq)
+            dq = np.zeros(self.nv)
+        else:   # centred at q0: x = dq exactly, resolved relative to itself near q0
+            self.q_ref = self.op.q.copy()
+        self.offset = pin.difference(self.model, self.op.q, self.q_ref)
+        return np.concatenate([dq, self.op.v + dx0[self.nv:]]), []
+
+    def model_state(self, s: np.ndarray) -> np.ndarray:
+        """x = [difference(q0, q); v - v0] at chart state ``s`` (what a feedback reads). In a
+        vector space (nq = nv) it is the chart's constant offset difference(q0, q_ref) plus
+        dq: as smooth in s as s itself, where forming q = q_ref + dq first would round at
+        eps |q| (noise that a high gain amplifies into the right-hand side)."""
+        nv = self.nv
+        if self.lie:
+            dq = pin.difference(self.model, self.op.q, pin.integrate(self.model, self.q_ref,
+                                                                     s[:nv]))
+        else:
+            dq = self.offset + s[:nv]
+        return np.concatenate([dq, s[nv:] - self.op.v])
 
     def rhs(self, t: float, s: np.ndarray, u: np.ndarray) -> np.ndarray:
         system, nv = self.system, self.nv
@@ -130,6 +149,7 @@ class OpenChain:
         if not beyond_chart(s, self.angles):
             return None
         self.q_ref = pin.integrate(self.model, self.q_ref, s[:self.nv])
+        self.offset = pin.difference(self.model, self.op.q, self.q_ref)
         return np.concatenate([np.zeros(self.nv), s[self.nv:]]), "chart"
 
 
@@ -166,6 +186,7 @@ class Mechanism:
             raise ShapeError(f"dx0 must have 2 nv = {2 * nv} entries (all coordinates) or 2 nz "
                              f"= {2 * nz} (the independent ones), got {dx0.size}")
         self.q_ref = self.op.q.copy()
+        self.offset = np.zeros(nv)   # difference(q0, q_ref)
         G = self.cons.jacobian(self.op.q)[self.rows]
         self.cache = (np.zeros(nz), np.zeros(nv), self.op.q, G, self._basis(G))
         s = np.concatenate([dz, self.op.v[self.z] + dzdot])
@@ -227,6 +248,7 @@ class Mechanism:
         """Centre the chart at the configuration q (q_ref := q, c := 0; G and R are q's) and
         return the state there, (0, v[z])."""
         self.q_ref = q.copy()
+        self.offset = pin.difference(self.model, self.op.q, q)
         self.cache = (np.zeros(self.z.size), np.zeros(self.nv), q, G, R)
         return np.concatenate([np.zeros(self.z.size), v[self.z]])
 
@@ -245,6 +267,16 @@ class Mechanism:
     def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q, _, R = self._configure(s)
         return q, R @ s[self.z.size:]
+
+    def model_state(self, s: np.ndarray) -> np.ndarray:
+        """x = [difference(q0, q); v - v0] at state ``s`` (all nv coordinates; what a feedback
+        reads): in a vector space the chart's offset plus its coordinates c, as for
+        :meth:`OpenChain.model_state`."""
+        q, _, R = self._configure(s)
+        v = R @ s[self.z.size:]
+        dq = pin.difference(self.model, self.op.q, q) if self.lie else \
+            self.offset + self.cache[1]
+        return np.concatenate([dq, v - self.op.v])
 
     def rhs(self, t: float, s: np.ndarray, u: np.ndarray) -> np.ndarray:
         system, nv = self.system, self.nv

@@ -6,6 +6,9 @@ loop adds (which the open loop does not have)."""
 
 from __future__ import annotations
 
+import contextlib
+import signal
+
 import numpy as np
 import pytest
 import scipy.integrate
@@ -25,6 +28,25 @@ MGL = 1.0 * G * 1.0   # [N*m]: m g l
 def _pendulum() -> pinlin.Scene:
     return pinlin.Scene.from_urdf(URDF_DIR / "pendulum.urdf",
                                   effects={"gravity": [0.0, 0.0, -G]})
+
+
+@contextlib.contextmanager
+def _deadline(seconds: int):
+    """Fail (TimeoutError) instead of hanging past ``seconds`` (SIGALRM; POSIX only)."""
+    if not hasattr(signal, "SIGALRM"):
+        yield
+        return
+
+    def expire(*_):
+        raise TimeoutError(f"still running after {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 def _gain(model: pinlin.LinearModel, poles: list[float]) -> np.ndarray:
@@ -162,10 +184,73 @@ def test_a_high_gain_loop_is_stiff():
     ([["1", "2"]], "got text"),
     (lambda t, x: [1.0, 2.0], r"must return 1 finite numbers, got array\(\[1\., 2\.\]\)"),
     (lambda t, x: [np.inf], "must return 1 finite numbers"),
+    (np.zeros(3), r"got shape \(3,\)"),                       # the shape given, not reshaped
+    (lambda t: [0.0], r"feedback\(t, x\) of the time .* raised TypeError"),
+    (np.zeros, "calling it so raised TypeError"),              # callable by accident
+    # 1e12 N*m/rad on a 1 kg*m^2 pendulum: 1e6 rad/s over 1e3 s, 1.6e8 periods
+    (np.array([[1e12, 0.0]]), r"argument 'feedback'.*of the closed loop.*lower the gain"),
 ])
 def test_bad_feedback(feedback, match):
     with pytest.raises(pinlin.ArgumentError, match=match):
         pinlin.simulate("pendulum", [0.0, 1.0], dx0=[0.1, 0.0], feedback=feedback)
+
+
+def test_bad_feedback_horizon():
+    """The closed loop's speed is blamed on the gain, not on t (the open loop's 3.1 rad/s
+    over 1e3 s is 500 periods: fine)."""
+    with pytest.raises(pinlin.ArgumentError, match="argument 'feedback'"):
+        pinlin.simulate("pendulum", [0.0, 1e3], dx0=[0.1, 0.0], feedback=[[1e12, 0.0]])
+
+
+def test_a_scene_without_inputs_has_nothing_to_feed_back():
+    with pytest.raises(pinlin.ArgumentError, match="no inputs to feed back to"):
+        pinlin.simulate("standing_box", [0.0, 0.1], feedback=lambda t, x: [])
+
+
+def test_a_gain_is_checked_against_the_model_it_was_designed_on():
+    """(K, model): the default model's gain drives the same motion as K alone; a canonical
+    model's ([p; q]: momenta first) or an orthonormal basis's (q:z[0]) is refused, where K
+    alone, of the right shape, would be applied to the wrong states."""
+    t = np.linspace(0.0, 1.0, 11)
+    model = pinlin.linearize("ur5_arm")
+    K = np.ones((6, 12))
+    alone = pinlin.simulate("ur5_arm", t, dx0=1e-3 * np.ones(12), feedback=K)
+    paired = pinlin.simulate("ur5_arm", t, dx0=1e-3 * np.ones(12), feedback=(K, model))
+    np.testing.assert_array_equal(alone.x, paired.x)
+    canonical = pinlin.linearize("ur5_arm", formulation="canonical")
+    with pytest.raises(pinlin.ArgumentError, match=r"model 'ur5_arm', whose states \(p:"):
+        pinlin.simulate("ur5_arm", t, feedback=(K, canonical))
+    four_bar = pinlin.linearize("four_bar")
+    pinlin.simulate("four_bar", t, feedback=(np.ones((1, 2)), four_bar))
+    penalty = pinlin.linearize("four_bar", formulation="penalty")
+    pinlin.simulate("four_bar", t, feedback=(np.ones((1, 6)), penalty))
+    orthonormal = pinlin.linearize("four_bar", basis="orthonormal")
+    with pytest.raises(pinlin.ArgumentError, match=r"states \(q:z\[0\]"):
+        pinlin.simulate("four_bar", t, feedback=(np.ones((1, 2)), orthonormal))
+
+
+def test_a_very_high_gain_about_a_far_point_is_resolved():
+    """K = [1e12, 2e6] upright (q0 = pi, 0.6 rad off): a critically damped loop at 1e6 1/s.
+    The feedback reads x from the integrator's chart centred at q0 (x = dq exactly): had the
+    chart been centred at q0 + dx0 (x = dq + 0.6, |dq| -> 0.6), x would carry eps * 0.6
+    rounding that the gain turns into 1e-4 rad/s^2 of noise, which stalled Radau at steps of
+    1e-12 s. Reference: the hand-written ODE in x, solve_ivp Radau at tighter tolerances."""
+    scene = _pendulum()
+    K = np.array([[1e12, 2e6]])
+    t = np.array([0.0, 1e-6, 2e-6, 5e-6, 1e-5, 1e-2])
+    with _deadline(120):   # the stall ran for hours: fail instead
+        sim = pinlin.simulate(scene, t, dx0=[0.6, 0.0], q0=[np.pi], feedback=K)
+    assert sim.info["method"] == "Radau" and sim.info["nfev"] < 1e5   # measured: 14 000
+
+    def rhs(_, s):
+        return [s[1], (MGL * np.sin(s[0]) - (K @ s)[0]) / J_PENDULUM]
+
+    ref = scipy.integrate.solve_ivp(rhs, (0.0, t[-1]), [0.6, 0.0], t_eval=t, method="Radau",
+                                    rtol=1e-12, atol=1e-15)
+    # Positions to 1e-9 of the 0.6 rad start, velocities (up to 2e5 rad/s) to 1e-9 of theirs.
+    np.testing.assert_allclose(sim.x[:, 0], ref.y[0], rtol=0, atol=1e-9 * 0.6)
+    np.testing.assert_allclose(sim.x[:, 1], ref.y[1], rtol=0,
+                               atol=1e-9 * np.abs(ref.y[1]).max())
 
 
 def test_a_mechanisms_gain_sizes_are_named():
