@@ -10,6 +10,7 @@ import contextlib
 import signal
 
 import numpy as np
+import pinocchio as pin
 import pytest
 import scipy.integrate
 import scipy.linalg as sla
@@ -257,3 +258,72 @@ def test_a_mechanisms_gain_sizes_are_named():
     """four_bar: nv = 3, nz = 1: a gain is (1, 2) or (1, 6)."""
     with pytest.raises(pinlin.ArgumentError, match=r"shape \(1, 2\) or \(1, 6\)"):
         pinlin.simulate("four_bar", [0.0, 1.0], feedback=np.zeros((1, 4)))
+
+
+def test_tv_lqr_along_a_swing_follows_the_linear_time_varying_loop():
+    """The time-varying LQR of a planned motion (what linearize_trajectory is for), closed
+    around the nonlinear robot. The double pendulum swings along q_ref(t) = [0.8 sin 2t,
+    -0.6 sin 3t] (u_ref by inverse dynamics, Pinocchio's RNEA); K_k comes from the discrete
+    Riccati recursion on the ZOH discretizations of linearize_trajectory's models at 201
+    points (dt = 10 ms), linear in t between them. Started off the reference, the robot under
+    du = u_ref(t) - K(t) [q - q_ref(t); v - v_ref(t)] deviates from it as the linear
+    time-varying loop dx' = (A(t) - B(t) K(t)) dx does, A(t) and B(t) from single
+    linearize calls at the reference state at each t: the difference is the remainder,
+    quadratic in the amplitude (slope 2), and the loop brings the deviation down."""
+    scene = pinlin.Scene.resolve("double_pendulum")
+    system = scene.system
+    model, data = system.model, system.model.createData()
+    amp, omega = np.array([0.8, -0.6]), np.array([2.0, 3.0])
+
+    def reference(tk):
+        q = amp * np.sin(omega * tk)
+        v = amp * omega * np.cos(omega * tk)
+        a = -amp * omega**2 * np.sin(omega * tk)
+        return q, v, pin.rnea(model, data, q, v, a).copy()
+
+    T, N = 2.0, 201
+    grid = np.linspace(0.0, T, N)
+    dt = grid[1] - grid[0]
+    Q, V, U = (np.array(c) for c in zip(*(reference(tk) for tk in grid), strict=True))
+    traj = pinlin.linearize_trajectory(scene, Q, V, U).discretize(dt)
+    weight_x, weight_u = np.diag([100.0, 100.0, 1.0, 1.0]), 1e-2 * np.eye(2)
+    P, gains = weight_x, np.zeros((N, 2, 4))
+    for k in range(N - 1, -1, -1):          # backward Riccati on the discrete models
+        Ad, Bd = traj.A[k], traj.B[k]
+        gains[k] = np.linalg.solve(weight_u + Bd.T @ P @ Bd, Bd.T @ P @ Ad)
+        P = weight_x + Ad.T @ P @ (Ad - Bd @ gains[k])
+
+    def gain(tk):
+        s = min(tk / dt, N - 1.0)
+        k = min(int(s), N - 2)
+        return gains[k] + (s - k) * (gains[k + 1] - gains[k])
+
+    q0, v0, _ = reference(0.0)
+
+    def law(tk, x):                         # x = [q - q0; v - v0] (revolute joints)
+        q_ref, v_ref, u_ref = reference(tk)
+        dx = np.concatenate([q0 + x[:2] - q_ref, v0 + x[2:] - v_ref])
+        return u_ref - gain(tk) @ dx        # u0 = 0 (v0 given, the scene names no u)
+
+    def linear_loop(tk, dx):
+        q_ref, v_ref, u_ref = reference(tk)
+        m = pinlin.linearize(scene, q=q_ref, v=v_ref, u=u_ref)
+        return (m.A - m.B @ gain(tk)) @ dx
+
+    t = np.linspace(0.0, T, 41)
+    direction = np.array([1.0, -0.5, 0.3, 0.8])
+    amplitudes = np.array([1e-3, 2e-3, 4e-3])
+    # The linear loop is linear: one solution, scaled by the amplitude (its error, ~1e-9 of
+    # it, then ~1e-12 at a = 1e-3: far below the remainder's 1e-7).
+    unit = scipy.integrate.solve_ivp(linear_loop, (0.0, T), direction, t_eval=t,
+                                     method="DOP853", rtol=1e-9, atol=1e-12).y.T
+    ref = np.array([np.concatenate(reference(tk)[:2]) for tk in t])
+    errors = []
+    for a in amplitudes:
+        sim = pinlin.simulate(scene, t, dx0=a * direction, q0=q0, v0=v0, feedback=law)
+        deviation = np.hstack([sim.q, sim.v]) - ref
+        errors.append(np.abs(deviation - a * unit).max())
+        assert np.abs(deviation[-1]).max() < 0.1 * a   # the loop holds the swing
+    slope = np.polyfit(np.log(amplitudes), np.log(errors), 1)[0]
+    assert 1.9 < slope < 2.1, (slope, errors)
+    assert errors[0] > 1e2 * 1e-10
