@@ -354,7 +354,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'a gain over all coordinates applied as du = +K x'),
     'feedback_open_loop_stiffness': (
         'pinlin/simulation.py',
-        '        return dyn.rhs(t0, s, inputs.total(t0, lambda: model_state(dyn, s), u))',
+        '        return dyn.rhs(t0, s, inputs.total(t0, lambda: dyn.model_state(s), u))',
         '        return dyn.rhs(t0, s, u)',
         'the stiffness criterion judges the open loop, not the closed one'),
     'feedback_wrong_columns': (
