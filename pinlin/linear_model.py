@@ -465,6 +465,16 @@ class LinearModel:
 
         return discretize(self, dt, method)
 
+    def closed_loop(self, K: object) -> LinearModel:
+        """This model under the state feedback u = -K x + r (K: n_inputs x n_states, as
+        ``control.lqr`` returns it): A - B K, C - D K, and for a mechanical model the
+        stiffness K + Bu K_q and damping C_damp + Bu K_v (:mod:`pinlin.closed_loop`).
+        ``pinlin.simulate(scene, ..., feedback=K)`` runs the same loop on the nonlinear
+        dynamics."""
+        from .closed_loop import closed_loop
+
+        return closed_loop(self, K)
+
     def to_control(self):
         """python-control ``StateSpace`` with the signal names (E folded by
         :meth:`standard_form`). Needs the ``control`` extra."""

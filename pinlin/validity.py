@@ -80,6 +80,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .arrays import non_numbers, read_only, real_array
+from .closed_loop import gain_matrix
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 from .linearization import _system, linearize
@@ -407,8 +408,8 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
              periods: float = 5, tolerance: float = 0.01, *, modes: object = None,
              direction: object = None, time_constants: float = 2.0,
              horizon: float | None = None, q: np.ndarray | None = None,
-             v: np.ndarray | None = None, rtol: float = 1e-10, atol: float = 1e-12
-             ) -> Validity:
+             v: np.ndarray | None = None, rtol: float = 1e-10, atol: float = 1e-12,
+             feedback: object = None) -> Validity:
     """How large a motion the scene's linear model stays accurate for (module docstring).
 
     Args:
@@ -431,6 +432,10 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
             :func:`pinlin.simulate` (q (nq); v (nv) [rad/s or m/s]: the state is given, u0 the
             scene's ``u`` or zero, so the point need not be an equilibrium).
         rtol, atol: Tolerances of the nonlinear simulation.
+        feedback: A gain K (n_inputs x n_states of the scene's linear model, as
+            ``control.lqr`` returns it): the closed loop u = -K x is compared instead, its
+            linear model ``model.closed_loop(K)`` (its modes are the closed loop's) against
+            ``pinlin.simulate(..., feedback=K)``.
 
     Raises:
         ArgumentError: a bad argument (the message names it and what is expected).
@@ -449,11 +454,19 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
     time_constants = _positive("time_constants", time_constants, "of time constants")
     horizon = None if horizon is None else _positive("horizon", horizon, "[s]")
     model = linearize(system, q=q, v=v)
+    gain = None
+    if feedback is not None:
+        if callable(feedback):
+            raise ArgumentError("feedback", "expected a gain matrix K (the linear model of a "
+                                            "law is its gain); a callable has none to compare")
+        gain = gain_matrix(feedback, model.n_inputs, model.n_states, "feedback")
+        model = model.closed_loop(gain)
     ma = modal(model)
     chosen = _select(ma, modes, direction is not None)
     drift = 0.0 if model.f0 is None else float(np.abs(model.f0).max(initial=0.0))
     options = {"q0": None if q is None else model.operating_point.q,
-               "v0": None if v is None else model.operating_point.v, "rtol": rtol, "atol": atol}
+               "v0": None if v is None else model.operating_point.v, "rtol": rtol, "atol": atol,
+               "feedback": gain}
     n = model.n_states // 2
     horizons = {i: _mode_horizon(i, ma, periods, time_constants)
                 for i in ma.modes() if ma.kind(i) not in _EXCLUDED_KINDS}

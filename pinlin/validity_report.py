@@ -196,7 +196,10 @@ def table(result: Validity, sweeps: bool = True) -> str:
     """The summary of ``result`` (module docstring)."""
     point = "equilibrium" if result.equilibrium else f"NOT an equilibrium (|f0| = " \
                                                      f"{result.drift:.3g})"
-    lines = [f"Validity of the linear model of '{result.name}' ({point}): relative error "
+    loop = result.model.info.get("closed_loop")   # "u = -K x + r, K of shape (m, n)"
+    what = f"the closed loop {loop.split(',')[0]} of '{result.name}'" if loop else \
+        f"'{result.name}'"
+    lines = [f"Validity of the linear model of {what} ({point}): relative error "
              f"<= {_percent(result.tolerance)} over {result.periods:g} periods "
              f"({result.time_constants:g} time constants for real modes); "
              f"{result.simulations} simulations, {result.seconds:.1f} s"]

@@ -1,0 +1,115 @@
+"""LinearModel.closed_loop (u = -K x + r) and pinlin.validity of a closed loop, against
+references from outside the code under test: the poles a gain was placed at (scipy's
+place_poles), eig(A - B K) formed by hand, the closed loop's exact response (expm), and the
+odd nonlinearity of the inverted pendulum (error order 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from scipy.signal import place_poles
+
+import pinlin
+
+
+def _sorted(lam: np.ndarray) -> np.ndarray:
+    return lam[np.lexsort((lam.imag, lam.real))]
+
+
+@pytest.mark.parametrize("name, formulation", [("ur5_arm", "independent"),
+                                               ("four_bar", "independent"),
+                                               ("four_bar", "penalty"),
+                                               ("delta", "independent")])
+def test_closed_loop_is_a_minus_b_k_with_its_second_order_form(name, formulation):
+    """A - B K and C - D K exactly; the stiffness K + Bu K_q and damping C_damp + Bu K_v that
+    the model's constructor checks against A; modal's eigenvalues those of A - B K (eig by
+    hand); the response the matrix exponential's."""
+    model = pinlin.linearize(name, formulation=formulation)
+    n, m = model.n_states, model.n_inputs
+    K = np.random.default_rng(1).uniform(-2.0, 2.0, (m, n))
+    loop = model.closed_loop(K)
+    np.testing.assert_array_equal(loop.A, model.A - model.B @ K)
+    np.testing.assert_array_equal(loop.C, model.C - model.D @ K)
+    np.testing.assert_array_equal(loop.B, model.B)
+    nv = n // 2
+    np.testing.assert_array_equal(loop.K, model.K + model.Bu @ K[:, :nv])
+    np.testing.assert_array_equal(loop.C_damp, model.C_damp + model.Bu @ K[:, nv:])
+    expected = np.linalg.eigvals(model.A - model.B @ K)
+    found = pinlin.modal(loop).eigenvalues
+    if formulation == "penalty":   # the constraint modes sit decades above: compare relatively
+        scale = np.abs(expected).max()
+    else:
+        scale = max(1.0, float(np.abs(expected).max()))
+    np.testing.assert_allclose(_sorted(found), _sorted(expected), rtol=0, atol=1e-9 * scale)
+    t = np.linspace(0.0, 0.5, 6)
+    x0 = np.linspace(-1e-2, 1e-2, n)
+    res = pinlin.response(loop, t, x0=x0, method="exact")
+    exact = np.array([sla.expm((model.A - model.B @ K) * ti) @ x0 for ti in t])
+    np.testing.assert_allclose(res.x, exact, rtol=0, atol=1e-10 * np.abs(exact).max())
+    assert loop.info["closed_loop"] == f"u = -K x + r, K of shape ({m}, {n})"
+
+
+def test_a_canonical_model_keeps_its_a_and_drops_the_second_order_form():
+    model = pinlin.linearize("ur5_arm", formulation="canonical")
+    K = np.ones((6, 12))
+    loop = model.closed_loop(K)
+    assert loop.M is None and loop.K is None
+    np.testing.assert_array_equal(loop.A, model.A - model.B @ K)
+
+
+@pytest.mark.parametrize("K, error, match", [
+    (np.ones((6, 11)), pinlin.ArgumentError, r"shape \(6, 12\).*got shape \(6, 11\)"),
+    (np.full((6, 12), np.nan), pinlin.ArgumentError, "NaN or inf"),
+    ([["a"] * 12] * 6, pinlin.ArgumentError, "got text"),
+])
+def test_bad_gains(K, error, match):
+    with pytest.raises(error, match=match):
+        pinlin.linearize("ur5_arm").closed_loop(K)
+
+
+def test_a_model_without_inputs_or_with_input_derivatives_is_refused():
+    with pytest.raises(pinlin.ArgumentError, match="no inputs to feed back to"):
+        pinlin.linearize("standing_box").closed_loop(np.zeros((0, 12)))
+    A, B = np.array([[-1.0]]), np.array([[1.0]])
+    with_e = pinlin.LinearModel(A, B, np.eye(1), np.zeros((1, 1)), ("x",), ("u",), ("y",),
+                                E=np.array([[0.5]]), name="lead")
+    with pytest.raises(pinlin.ModelError, match="input-derivative terms"):
+        with_e.closed_loop([[1.0]])
+    with_e.standard_form().closed_loop([[1.0]])   # what the message says to do
+
+
+def test_validity_of_the_inverted_pendulum_held_by_its_gain():
+    """Upright, the pendulum's linear model holds only to 0.054 rad along its unstable mode
+    (its growth ends every comparison: a fall). Under a gain placing the poles at -3 and -4
+    the closed loop's modes are those poles (place_poles' target, to 1e-9) and its linear
+    model holds to ~0.6 rad (1 % error over two time constants), the error of third order
+    (the odd sin(theta): no quadratic term with a linear law)."""
+    upright = pinlin.linearize("pendulum", q=[np.pi])
+    K = place_poles(upright.A, upright.B, [-3.0, -4.0]).gain_matrix
+    held = pinlin.validity("pendulum", q=[np.pi], feedback=K)
+    poles = sorted(c.eigenvalue.real for c in held.cases)
+    np.testing.assert_allclose(poles, [-4.0, -3.0], rtol=0, atol=1e-9)
+    assert all(c.kind == "real" for c in held.cases)
+    assert all(abs(c.slope - 3.0) < 0.05 for c in held.cases)
+    assert min(c.radius for c in held.cases) > 0.3
+    alone = pinlin.validity("pendulum", q=[np.pi], modes=[0])
+    assert alone.cases[0].kind == "unstable" and alone.cases[0].radius < 0.1
+    assert "closed loop u = -K x + r" in held.table().splitlines()[0]
+    with pytest.raises(pinlin.ArgumentError, match="a callable has none to compare"):
+        pinlin.validity("pendulum", q=[np.pi], feedback=lambda t, x: -K @ x)
+    with pytest.raises(pinlin.ArgumentError, match=r"argument 'feedback'.*shape \(1, 2\)"):
+        pinlin.validity("pendulum", q=[np.pi], feedback=np.ones((1, 3)))
+
+
+def test_validity_of_a_mechanism_under_lqr_is_second_order():
+    """The four-bar under LQR (python-control): its closed-loop linear model holds with a
+    quadratic remainder (order 2, as open loop: the mechanism's geometry is not odd)."""
+    control = pytest.importorskip("control")
+    model = pinlin.linearize("four_bar")
+    K = control.lqr(model.A, model.B, np.eye(2), np.eye(1))[0]
+    held = pinlin.validity("four_bar", feedback=K)
+    closed = np.linalg.eigvals(model.A - model.B @ K)
+    np.testing.assert_allclose(sorted(abs(c.eigenvalue) for c in held.cases),
+                               sorted(np.abs(closed))[:len(held.cases)], rtol=1e-9)
+    assert all(abs(c.slope - 2.0) < 0.1 for c in held.cases)
