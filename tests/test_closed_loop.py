@@ -79,6 +79,16 @@ def test_a_model_without_inputs_or_with_input_derivatives_is_refused():
     with_e.standard_form().closed_loop([[1.0]])   # what the message says to do
 
 
+def test_a_feedthrough_enters_the_outputs():
+    """y = C x + D u with u = -K x + r: C - D K (a direct feedthrough D = 2, by hand)."""
+    model = pinlin.LinearModel(np.array([[-1.0, 0.0], [1.0, -2.0]]), np.array([[1.0], [0.0]]),
+                               np.array([[0.0, 1.0]]), np.array([[2.0]]), ("x1", "x2"), ("u",),
+                               ("y",), name="feedthrough")
+    loop = model.closed_loop([[3.0, 5.0]])
+    np.testing.assert_array_equal(loop.C, [[-6.0, -9.0]])
+    np.testing.assert_array_equal(loop.A, [[-4.0, -5.0], [1.0, -2.0]])
+
+
 def test_validity_of_the_inverted_pendulum_held_by_its_gain():
     """Upright, the pendulum's linear model holds only to 0.054 rad along its unstable mode
     (its growth ends every comparison: a fall). Under a gain placing the poles at -3 and -4

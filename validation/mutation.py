@@ -362,6 +362,16 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '            self.feedback = lambda t, x: -(gain @ x[picked])',
         '            self.feedback = lambda t, x: -(gain @ x[:2 * nz])',
         "a mechanism's gain reads the first 2 nz states instead of [dz; dz']"),
+    'closed_loop_output_unchanged': (
+        'pinlin/closed_loop.py',
+        'model.C - model.D @ gain, model.D,',
+        'model.C, model.D,',
+        "the closed loop's outputs leave out the feedthrough of the feedback (C, not C - D K)"),
+    'closed_loop_damping_from_positions': (
+        'pinlin/closed_loop.py',
+        '"C_damp": model.C_damp + model.Bu @ Kv,',
+        '"C_damp": model.C_damp + model.Bu @ Kq,',
+        "the closed loop's damping takes the position gains"),
 }
 
 
