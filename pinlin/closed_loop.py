@@ -9,8 +9,9 @@ the same algebra for a discrete model (x[k+1]). A mechanical model keeps its sec
 M v' + C_damp v + K q = Bu u with the gain split as K = [K_q, K_v]: the loop adds Bu K_q to
 the stiffness and Bu K_v to the damping (:meth:`pinlin.LinearModel.closed_loop`), so that
 :func:`pinlin.modal` and the modal energies read the closed loop's matrices. Its modes are then
-the closed loop's: a gain that is not symmetric (most are) sends modal to the general
-eigensolver.
+the closed loop's; modal takes the symmetric (K, M) path only where the loop keeps the model
+undamped and symmetric (K_v = 0 and K + Bu K_q symmetric), the general one otherwise. A
+discrete model's A_d - B_d K has no such second-order form: it has none to keep.
 
 The nonlinear counterpart is ``pinlin.simulate(scene, ..., feedback=K)``, which applies the
 same law to the scene's nonlinear dynamics (:mod:`pinlin.simulation_inputs`), and
@@ -48,10 +49,33 @@ def gain_matrix(K: object, n_inputs: int, n_states: int, name: str = "K") -> np.
     return gain
 
 
+def model_gain(model: LinearModel, K: object, name: str = "K") -> np.ndarray:
+    """A gain for ``model``: :func:`gain_matrix` of its size, or of a pair (K, the model K was
+    designed on) whose states must be ``model``'s.
+
+    Raises:
+        ArgumentError: naming ``name``: a model without inputs, a pair's other states, a bad
+            gain.
+    """
+    from .linear_model import LinearModel
+
+    if model.n_inputs == 0:
+        raise ArgumentError(name, f"model '{model.name}' has no inputs to feed back to")
+    if isinstance(K, tuple) and len(K) == 2 and isinstance(K[1], LinearModel):
+        K, designed = K
+        if designed.state_names != model.state_names:
+            raise ArgumentError(name, f"the gain was designed on a model with the states "
+                                      f"{', '.join(designed.state_names[:3])}, ...; this "
+                                      f"model has {', '.join(model.state_names[:3])}, ...")
+    return gain_matrix(K, model.n_inputs, model.n_states, name)
+
+
 def closed_loop(model: LinearModel, K: object) -> LinearModel:
     """``model`` under u = -K x + r (module docstring): A - B K, C - D K; r takes the inputs'
-    names. Second-order matrices follow for a model in x = [dq; v]; a model in other states
-    (canonical [p; q]) drops them (its A is the closed loop's).
+    names. ``K``: the gain, or a pair (K, the model it was designed on: states checked).
+    ``info["closed_loop_gains"]`` lists every gain applied. Second-order matrices follow for
+    a continuous model in x = [dq; v]; a model in other states (canonical [p; q]) or a
+    discrete one drops them (its A is the closed loop's).
 
     Raises:
         ArgumentError: K not a finite (nu x n) gain; a model without inputs.
@@ -60,26 +84,35 @@ def closed_loop(model: LinearModel, K: object) -> LinearModel:
     """
     from .linear_model import LinearModel
 
-    n, m = model.n_states, model.n_inputs
-    if m == 0:
-        raise ArgumentError("K", f"model '{model.name}' has no inputs to feed back to")
-    gain = gain_matrix(K, m, n)
-    if (model.E is not None and np.any(model.E)) or (model.F is not None and np.any(model.F)):
-        raise ModelError(f"model '{model.name}' has input-derivative terms (E or F): the loop "
-                         "would feed back x' as well; close it on model.standard_form() (F: "
-                         "a loop through u' is not a state feedback)")
+    n = model.n_states
+    gain = model_gain(model, K)
+    if model.F is not None and np.any(model.F):
+        raise ModelError(f"model '{model.name}' has an output term F u' (the derivative of "
+                         "the input): with u = -K x + r the outputs would read x' and r'; "
+                         "closed_loop takes models without it")
+    if model.E is not None and np.any(model.E):
+        raise ModelError(f"model '{model.name}' has input-derivative terms E (x' = A x + B u + "
+                         "E u'): the loop would feed back x' as well; model.standard_form() "
+                         "removes them in the state x - E u, on which a gain then acts")
     second: dict[str, np.ndarray | None] = dict.fromkeys(("M", "C_damp", "K", "Bu"))
     nv = n // 2
-    if model.M is not None and all(s.startswith("q:") for s in model.state_names[:nv]) and \
+    info = dict(model.info)
+    if model.M is not None and not model.dt and \
+            all(s.startswith("q:") for s in model.state_names[:nv]) and \
             all(s.startswith("v:") for s in model.state_names[nv:]):
         Kq, Kv = gain[:, :nv], gain[:, nv:]
         second = {"M": model.M, "C_damp": model.C_damp + model.Bu @ Kv,
                   "K": model.K + model.Bu @ Kq, "Bu": model.Bu}
-    info = {**model.info, "closed_loop": f"u = -K x + r, K of shape {gain.shape}"}
+        if "velocity_terms" in info:
+            info["velocity_terms"] = bool(info["velocity_terms"] or np.any(Kv))
+    loops = [*info.get("closed_loop_gains", []), gain.tolist()]
+    info["closed_loop"] = (f"u = -K x + r, K of shape {gain.shape}"
+                           + (f" (closed {len(loops)} times)" if len(loops) > 1 else ""))
+    info["closed_loop_gains"] = loops   # each K applied, in order
     return LinearModel(model.A - model.B @ gain, model.B, model.C - model.D @ gain, model.D,
                        model.state_names, model.input_names, model.output_names,
                        G=model.G, operating_point=model.operating_point,
                        name=model.name, info=info, f0=model.f0, dt=model.dt, **second)
 
 
-__all__ = ["closed_loop", "gain_matrix"]
+__all__ = ["closed_loop", "gain_matrix", "model_gain"]

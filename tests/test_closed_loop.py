@@ -123,3 +123,43 @@ def test_validity_of_a_mechanism_under_lqr_is_second_order():
     np.testing.assert_allclose(sorted(abs(c.eigenvalue) for c in held.cases),
                                sorted(np.abs(closed))[:len(held.cases)], rtol=1e-9)
     assert all(abs(c.slope - 2.0) < 0.1 for c in held.cases)
+
+
+def test_the_upright_double_pendulum_under_lqr_is_third_order():
+    """Gravity is odd about upright and the law linear: no quadratic term, order 3. Its
+    smallest amplitude's error (1.3e-7 at a = 1e-3) sits beside DOP853's noise there (130 atol
+    / a: long steps, sampled through their dense output), which the noise floor once left in
+    the fit (order 2.40)."""
+    control = pytest.importorskip("control")
+    upright = pinlin.linearize("double_pendulum", q=[np.pi, 0.0])
+    K = control.lqr(upright.A, upright.B, np.eye(4), np.eye(2))[0]
+    case = pinlin.validity("double_pendulum", q=[np.pi, 0.0], feedback=K, modes=[0]).cases[0]
+    assert abs(case.slope - 3.0) < 0.05, case.diagnosis
+
+
+def test_closed_loop_records_its_gain_and_what_it_changed():
+    """The gain in info (each one, when closed twice), velocity terms once a velocity gain
+    damps the model, (K, model) pairs checked, a discrete model without a second-order form."""
+    model = pinlin.linearize("pendulum")
+    assert model.info["velocity_terms"] is False
+    loop = model.closed_loop([[0.0, 2.0]])
+    assert loop.info["velocity_terms"] is True
+    np.testing.assert_array_equal(loop.C_damp, [[2.0]])
+    assert loop.info["closed_loop_gains"] == [[[0.0, 2.0]]]
+    twice = loop.closed_loop((np.array([[1.0, 0.0]]), loop))
+    assert twice.info["closed_loop_gains"] == [[[0.0, 2.0]], [[1.0, 0.0]]]
+    assert "closed 2 times" in twice.info["closed_loop"]
+    other = pinlin.linearize("pendulum", formulation="canonical")
+    with pytest.raises(pinlin.ArgumentError, match="designed on a model with the states p:"):
+        model.closed_loop(([[1.0, 0.0]], other))
+    discrete = pinlin.LinearModel(
+        np.eye(2), np.array([[0.0], [0.01]]), np.eye(2), np.zeros((2, 1)), ("q:a", "v:a"),
+        ("u:a",), ("q:a", "v:a"), M=np.eye(1), C_damp=np.zeros((1, 1)), K=np.eye(1),
+        Bu=np.eye(1), dt=0.01, name="hand_built")
+    assert discrete.closed_loop([[1.0, 1.0]]).M is None   # A_d - B_d K: no M v' + ... form
+    with pytest.raises(pinlin.ArgumentError, match=r"argument 'feedback'.*no inputs"):
+        pinlin.validity("standing_box", feedback=np.zeros((1, 6)))
+    lead = pinlin.LinearModel(np.array([[-1.0]]), np.eye(1), np.eye(1), np.zeros((1, 1)),
+                              ("x",), ("u",), ("y",), F=np.eye(1), name="with_f")
+    with pytest.raises(pinlin.ModelError, match="output term F u'"):
+        lead.closed_loop([[1.0]])

@@ -286,9 +286,9 @@ def test_result_is_read_only(pendulum):
     ({"amplitudes": [True]}, pinlin.ArgumentError, r"amplitudes.*got booleans"),
     ({"amplitudes": [0.1, 2e6]}, pinlin.ArgumentError,
      r"amplitudes.*<= 1e\+06 .*got \[2000000\.\]"),
-    # solver tolerances whose noise (1e3 rtol + 1e2 atol / a) reaches the 1 % tolerance: the
+    # solver tolerances whose noise (1e3 rtol + 1e3 atol / a) reaches the 1 % tolerance: the
     # "radius" would be the solver's (atol = 1e10 gave 0.001 rad for the pendulum's 0.159)
-    ({"atol": 1e10}, pinlin.ArgumentError, r"argument 'atol'.*or atol <= 1e-08"),
+    ({"atol": 1e10}, pinlin.ArgumentError, r"argument 'atol'.*or atol <= 1e-09"),
     ({"rtol": 1e-3}, pinlin.ArgumentError, r"argument 'rtol'.*tolerance above 1 or rtol <= 1e-06"),
     ({"periods": 0}, pinlin.ArgumentError, r"periods.*> 0"),
     ({"time_constants": -1.0}, pinlin.ArgumentError, r"time_constants.*> 0"),
