@@ -51,7 +51,8 @@ def gain_matrix(K: object, n_inputs: int, n_states: int, name: str = "K") -> np.
 
 def model_gain(model: LinearModel, K: object, name: str = "K") -> np.ndarray:
     """A gain for ``model``: :func:`gain_matrix` of its size, or of a pair (K, the model K was
-    designed on) whose states must be ``model``'s.
+    designed on) whose states must be ``model``'s; for a mechanism's model in [dz; dz'] also
+    a gain over all 2 nv coordinates (:func:`_on_independent`).
 
     Raises:
         ArgumentError: naming ``name``: a model without inputs, a pair's other states, a bad
@@ -67,7 +68,26 @@ def model_gain(model: LinearModel, K: object, name: str = "K") -> np.ndarray:
             raise ArgumentError(name, f"the gain was designed on a model with the states "
                                       f"{', '.join(designed.state_names[:3])}, ...; this "
                                       f"model has {', '.join(model.state_names[:3])}, ...")
-    return gain_matrix(K, model.n_inputs, model.n_states, name)
+    return gain_matrix(_on_independent(model, K), model.n_inputs, model.n_states, name)
+
+
+def _on_independent(model: LinearModel, K: object) -> object:
+    """A mechanism's gain over all 2 nv coordinates, K = [K_q, K_v], as the gain on its
+    model's state [dz; dz']: [K_q R, K_v R] (R = ``info["R"]``, the nullspace basis: dq = R dz
+    and v = R dz' to first order, the same law to the linear model's order); anything else
+    unchanged."""
+    R = model.info.get("R")
+    if R is None or not isinstance(K, np.ndarray | list | tuple):
+        return K
+    R = np.asarray(R, dtype=float)
+    nv, nz = R.shape
+    try:
+        gain = np.asarray(K, dtype=float)
+    except (TypeError, ValueError):
+        return K            # gain_matrix names what is wrong
+    if nv == nz or model.n_states != 2 * nz or gain.ndim != 2 or gain.shape[1] != 2 * nv:
+        return K
+    return np.hstack([gain[:, :nv] @ R, gain[:, nv:] @ R])
 
 
 def closed_loop(model: LinearModel, K: object) -> LinearModel:

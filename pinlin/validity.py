@@ -438,7 +438,8 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
         rtol, atol: Tolerances of the nonlinear simulation.
         feedback: A gain K (n_inputs x n_states of the scene's linear model, as
             ``control.lqr`` returns it; for a mechanism on its independent coordinates
-            [dz; dz']), or a pair (K, model) whose model's states are checked against
+            [dz; dz'], or on all 2 nv coordinates: its linear model's gain is then
+            [K_q R, K_v R]), or a pair (K, model) whose model's states are checked against
             those: the closed loop u = -K x is compared instead, its
             linear model ``model.closed_loop(K)`` (its modes are the closed loop's) against
             ``pinlin.simulate(..., feedback=K)``.
@@ -467,6 +468,10 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
                                             "law is its gain); a callable has none to compare")
         gain = model_gain(model, feedback, "feedback")
         model = model.closed_loop(gain)
+        wide = real_array(feedback[0] if isinstance(feedback, tuple) else feedback,
+                          "feedback", "a gain matrix")
+        if wide.ndim == 2 and wide.shape[1] != gain.shape[1]:   # over all 2 nv coordinates
+            gain = wide   # simulate applies the law the user gave
     ma = modal(model)
     chosen = _select(ma, modes, direction is not None)
     drift = 0.0 if model.f0 is None else float(np.abs(model.f0).max(initial=0.0))

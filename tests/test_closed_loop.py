@@ -163,3 +163,24 @@ def test_closed_loop_records_its_gain_and_what_it_changed():
                               ("x",), ("u",), ("y",), F=np.eye(1), name="with_f")
     with pytest.raises(pinlin.ModelError, match="output term F u'"):
         lead.closed_loop([[1.0]])
+
+
+def test_a_mechanisms_gain_over_all_coordinates():
+    """A gain on the four-bar's 3 coordinates ([K_q, K_v], 1 x 6): on the model's state
+    [dz; dz'] it is [K_q R, K_v R] (dq = R dz, v = R dz' to first order; R by hand from the
+    loop's velocity constraint Phi_q R = 0 with R[crank] = 1), and validity compares it with
+    simulate applying the wide law itself: a quadratic remainder (order 2)."""
+    model = pinlin.linearize("four_bar")
+    system = pinlin.Scene.resolve("four_bar").system
+    G = system.constraints.jacobian(model.operating_point.q)
+    crank = system.coordinate_names.index("crank")
+    others = [k for k in range(3) if k != crank]
+    R = np.zeros(3)
+    R[crank] = 1.0
+    R[others] = np.linalg.lstsq(G[:, others], -G[:, crank], rcond=None)[0]
+    wide = np.array([[4.0, -1.0, 2.0, 0.5, 0.3, -0.2]])
+    narrow = np.array([[wide[0, :3] @ R, wide[0, 3:] @ R]])
+    np.testing.assert_allclose(model.closed_loop(wide).A, model.closed_loop(narrow).A,
+                               rtol=1e-12, atol=1e-12)
+    held = pinlin.validity("four_bar", feedback=wide, modes=[0])
+    assert abs(held.cases[0].slope - 2.0) < 0.1
