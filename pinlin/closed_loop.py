@@ -20,6 +20,7 @@ same law to the scene's nonlinear dynamics (:mod:`pinlin.simulation_inputs`), an
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -29,65 +30,100 @@ from .exceptions import ArgumentError, ModelError
 
 if TYPE_CHECKING:
     from .linear_model import LinearModel
+    from .operating_point import OperatingPoint
 
 
-def gain_matrix(K: object, n_inputs: int, n_states: int, name: str = "K") -> np.ndarray:
-    """``K`` as a finite (n_inputs x n_states) float array (a vector when n_inputs is 1).
+def is_pair(K: object) -> bool:
+    """Whether ``K`` is a pair (gain, the LinearModel it was designed on)."""
+    from .linear_model import LinearModel
+
+    return isinstance(K, tuple) and len(K) == 2 and isinstance(K[1], LinearModel)
+
+
+def gain_matrix(K: object, n_inputs: int, widths: Sequence[int], name: str = "K"
+                ) -> np.ndarray:
+    """``K`` as a finite (n_inputs x w) float array, w one of ``widths`` (a vector when
+    n_inputs is 1).
 
     Raises:
         ArgumentError: naming ``name``: not real numbers, another shape, NaN or inf.
     """
-    what = f"a gain matrix of shape ({n_inputs}, {n_states}) (inputs x states: u = -K x)"
-    gain = real_array(K, name, what)
+    shapes = " or ".join(f"({n_inputs}, {w})" for w in sorted(set(widths)))
+    what = f"a gain matrix of shape {shapes} (inputs x states: u = -K x)"
+    gain = real_array(K, name, what + ", or a pair (K, model)")
     given = gain.shape
     if gain.ndim == 1 and n_inputs == 1:
         gain = gain[None, :]
-    if gain.shape != (n_inputs, n_states):
+    if gain.ndim != 2 or gain.shape[0] != n_inputs or gain.shape[1] not in widths:
         raise ArgumentError(name, f"expected {what}, got shape {given}")
     if not np.all(np.isfinite(gain)):
         raise ArgumentError(name, "the gain matrix contains NaN or inf")
     return gain
 
 
-def model_gain(model: LinearModel, K: object, name: str = "K") -> np.ndarray:
-    """A gain for ``model``: :func:`gain_matrix` of its size, or of a pair (K, the model K was
-    designed on) whose states must be ``model``'s; for a mechanism's model in [dz; dz'] also
-    a gain over all 2 nv coordinates (:func:`_on_independent`).
+def _listed(names: Sequence[str]) -> str:
+    return ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+
+
+def designed_gain(K: object, n_inputs: int, widths: Sequence[int],
+                  states: Sequence[tuple[str, ...]], point: OperatingPoint | None,
+                  name: str = "K") -> np.ndarray:
+    """:func:`gain_matrix` of ``K``, or of a pair (K, model) whose model must have one of the
+    ``states`` (name tuples), as many states as K has columns, and the operating point
+    ``point`` (q and v to 1e-9 relative): a gain designed about another point (an upright
+    pendulum's used about the hanging one) or on other states (a canonical model's [p; q]) is
+    refused.
 
     Raises:
-        ArgumentError: naming ``name``: a model without inputs, a pair's other states, a bad
-            gain.
+        ArgumentError: naming ``name`` and what differs.
     """
-    from .linear_model import LinearModel
+    if not is_pair(K):
+        return gain_matrix(K, n_inputs, widths, name)
+    K, designed = K
+    own = tuple(designed.state_names)
+    if own not in [tuple(s) for s in states]:
+        raise ArgumentError(name, f"the gain was designed on model '{designed.name}', whose "
+                                  f"states ({_listed(own)}) are not the ones fed back "
+                                  f"({_listed(states[0])}); design it on the independent or "
+                                  "penalty model with the partitioned basis (pinlin.linearize's "
+                                  "default)")
+    gain = gain_matrix(K, n_inputs, [designed.n_states], name)
+    there = designed.operating_point
+    if point is not None and there is not None:
+        for what, a, b in (("q", there.q, point.q), ("v", there.v, point.v)):
+            if a.shape != b.shape or np.abs(a - b).max(initial=0.0) > \
+                    1e-9 * max(1.0, float(np.abs(b).max(initial=0.0))):
+                raise ArgumentError(name, f"the gain was designed about another point: its "
+                                          f"model's {what} = {np.round(a, 6).tolist()!s:.80}, "
+                                          f"this one's {np.round(b, 6).tolist()!s:.80}")
+    return gain
 
+
+def model_gain(model: LinearModel, K: object, name: str = "K"
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(the gain on ``model``'s states, the gain as given): ``K`` of its size, a pair (K, the
+    model K was designed on: states and point checked, :func:`designed_gain`), or for a
+    mechanism's model in [dz; dz'] a gain over all 2 nv coordinates, K = [K_q, K_v], whose
+    gain on [dz; dz'] is [K_q R, K_v R] (R = ``info["R"]``, the nullspace basis: dq = R dz
+    and v = R dz' to first order, the same law to the linear model's order).
+
+    Raises:
+        ArgumentError: naming ``name``: a model without inputs, a pair's other states or
+            point, a bad gain.
+    """
     if model.n_inputs == 0:
         raise ArgumentError(name, f"model '{model.name}' has no inputs to feed back to")
-    if isinstance(K, tuple) and len(K) == 2 and isinstance(K[1], LinearModel):
-        K, designed = K
-        if designed.state_names != model.state_names:
-            raise ArgumentError(name, f"the gain was designed on a model with the states "
-                                      f"{', '.join(designed.state_names[:3])}, ...; this "
-                                      f"model has {', '.join(model.state_names[:3])}, ...")
-    return gain_matrix(_on_independent(model, K), model.n_inputs, model.n_states, name)
-
-
-def _on_independent(model: LinearModel, K: object) -> object:
-    """A mechanism's gain over all 2 nv coordinates, K = [K_q, K_v], as the gain on its
-    model's state [dz; dz']: [K_q R, K_v R] (R = ``info["R"]``, the nullspace basis: dq = R dz
-    and v = R dz' to first order, the same law to the linear model's order); anything else
-    unchanged."""
     R = model.info.get("R")
-    if R is None or not isinstance(K, np.ndarray | list | tuple):
-        return K
-    R = np.asarray(R, dtype=float)
-    nv, nz = R.shape
-    try:
-        gain = np.asarray(K, dtype=float)
-    except (TypeError, ValueError):
-        return K            # gain_matrix names what is wrong
-    if nv == nz or model.n_states != 2 * nz or gain.ndim != 2 or gain.shape[1] != 2 * nv:
-        return K
-    return np.hstack([gain[:, :nv] @ R, gain[:, nv:] @ R])
+    R = None if R is None else np.asarray(R, dtype=float)
+    widths = [model.n_states]
+    if R is not None and R.shape[0] != R.shape[1] and model.n_states == 2 * R.shape[1]:
+        widths.append(2 * R.shape[0])
+    gain = designed_gain(K, model.n_inputs, widths, [model.state_names],
+                         model.operating_point, name)
+    if gain.shape[1] == model.n_states:
+        return gain, gain
+    nv = R.shape[0]
+    return np.hstack([gain[:, :nv] @ R, gain[:, nv:] @ R]), gain
 
 
 def closed_loop(model: LinearModel, K: object) -> LinearModel:
@@ -105,7 +141,7 @@ def closed_loop(model: LinearModel, K: object) -> LinearModel:
     from .linear_model import LinearModel
 
     n = model.n_states
-    gain = model_gain(model, K)
+    gain = model_gain(model, K)[0]
     if model.F is not None and np.any(model.F):
         raise ModelError(f"model '{model.name}' has an output term F u' (the derivative of "
                          "the input): with u = -K x + r the outputs would read x' and r'; "
@@ -123,8 +159,7 @@ def closed_loop(model: LinearModel, K: object) -> LinearModel:
         Kq, Kv = gain[:, :nv], gain[:, nv:]
         second = {"M": model.M, "C_damp": model.C_damp + model.Bu @ Kv,
                   "K": model.K + model.Bu @ Kq, "Bu": model.Bu}
-        if "velocity_terms" in info:
-            info["velocity_terms"] = bool(info["velocity_terms"] or np.any(Kv))
+        info["velocity_terms"] = bool(info.get("velocity_terms") or np.any(Kv))
     loops = [*info.get("closed_loop_gains", []), gain.tolist()]
     info["closed_loop"] = (f"u = -K x + r, K of shape {gain.shape}"
                            + (f" (closed {len(loops)} times)" if len(loops) > 1 else ""))
@@ -135,4 +170,4 @@ def closed_loop(model: LinearModel, K: object) -> LinearModel:
                        name=model.name, info=info, f0=model.f0, dt=model.dt, **second)
 
 
-__all__ = ["closed_loop", "gain_matrix", "model_gain"]
+__all__ = ["closed_loop", "designed_gain", "gain_matrix", "is_pair", "model_gain"]

@@ -383,7 +383,8 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     s0, notes = dyn.initial_state(deviation)
     inputs = Inputs(u, grid, op.u, system.input_names)
     cols = dyn.columns if isinstance(dyn, Mechanism) else np.arange(nv)
-    inputs.close_loop(feedback, cols, nv, dyn.model_state(s0), system.state_names)
+    if feedback is not None:
+        inputs.close_loop(feedback, cols, nv, dyn.model_state(s0), system.state_names, op)
     chosen, stiffness, why = _choose_method(dyn, s0, inputs, grid)  # refuses endless ones
     if method is None:
         method = chosen

@@ -18,8 +18,9 @@ from collections.abc import Callable
 import numpy as np
 
 from .arrays import real_array
-from .exceptions import ArgumentError
-from .linear_model import LinearModel
+from .closed_loop import designed_gain
+from .exceptions import ArgumentError, PinlinError
+from .operating_point import OperatingPoint
 from .signals import Signal
 
 #: Feedback: (t [s], x) -> du [N*m or N].
@@ -91,13 +92,14 @@ class Inputs:
         return self.u0 + du
 
     def close_loop(self, feedback: object, columns: np.ndarray, nv: int, x0: np.ndarray,
-                   state_names: tuple[str, ...]) -> None:
+                   state_names: tuple[str, ...], point: OperatingPoint) -> None:
         """Add the state feedback ``feedback`` (see the module docstring): a gain K of shape
         (nu, 2 nz) acting on the model's state x[cols] (``columns``: the coordinates z of a
         mechanism, all nv for an open chain) or (nu, 2 nv) on the whole x; a pair (K, model)
-        whose model's state names are checked against those; or a callable
-        feedback(t, x[cols]) -> (nu,). ``x0``: the initial 2 nv state, on which a callable is
-        tried once (its output checked); ``state_names``: the names of x's 2 nv entries."""
+        whose model's states and operating point are checked against those and ``point``
+        (:func:`pinlin.closed_loop.designed_gain`); or a callable feedback(t, x[cols]) ->
+        (nu,). ``x0``: the initial 2 nv state, on which a callable is tried once (its output
+        checked); ``state_names``: the names of x's 2 nv entries."""
         if feedback is None:
             return
         nu, nz = self.u0.size, columns.size
@@ -105,36 +107,23 @@ class Inputs:
             raise ArgumentError("feedback", "the scene has no inputs to feed back to (its "
                                             "inputs.actuated names no joint)")
         picked = np.concatenate([columns, nv + columns])
-        if callable(feedback) and not isinstance(feedback, tuple):
+        if callable(feedback):
             self.feedback = _law(feedback, picked, nu)
             self.feedback_note = "a callable of (t, x)"
             try:
                 self.feedback(float(self.t[0]), x0)
-            except (TypeError, ValueError) as exc:
+            except PinlinError:
+                raise
+            except Exception as exc:   # a wrong signature, x indexed beyond its size, ...
+                size = f"2 nz = {picked.size}" if nz < nv else f"2 nv = {picked.size}"
                 raise ArgumentError("feedback", f"expected a function feedback(t, x) of the time "
-                                                f"[s] and the state (2 nz = {picked.size} "
-                                                f"numbers) returning {nu} inputs; calling it "
-                                                f"so raised {type(exc).__name__}: "
-                                                f"{str(exc):.120}") from exc
+                                                f"[s] and the state ({size} numbers) returning "
+                                                f"{nu} inputs; calling it so raised "
+                                                f"{type(exc).__name__}: {str(exc):.120}"
+                                                ) from exc
             return
-        sizes = sorted({2 * nz, 2 * nv})
-        what = " or ".join(f"({nu}, {n})" for n in sizes)
-        if isinstance(feedback, tuple) and len(feedback) == 2 and \
-                isinstance(feedback[1], LinearModel):
-            feedback, designed = feedback
-            _check_states(designed, state_names, picked)
-        gain = real_array(feedback, "feedback", f"a gain matrix K of shape {what} (du = -K x), "
-                                                "a pair (K, model) or a callable "
-                                                "feedback(t, x)")
-        given = gain.shape
-        if gain.ndim == 1 and nu == 1:
-            gain = gain[None, :]
-        if gain.ndim != 2 or gain.shape[0] != nu or gain.shape[1] not in sizes:
-            raise ArgumentError("feedback", f"expected a gain matrix K of shape {what} "
-                                            f"(inputs x the linear model's states: du = -K x), "
-                                            f"got shape {given}")
-        if not np.all(np.isfinite(gain)):
-            raise ArgumentError("feedback", "the gain matrix contains NaN or inf")
+        states = [state_names, tuple(state_names[k] for k in picked)]
+        gain = designed_gain(feedback, nu, [2 * nz, 2 * nv], states, point, "feedback")
         self.feedback_note = f"du = -K x, K of shape {gain.shape}"
         if gain.shape[1] == 2 * nv:
             self.feedback = lambda t, x: -(gain @ x)
@@ -164,21 +153,6 @@ def _law(law: Callable, picked: np.ndarray, nu: int) -> Law:
         return du
 
     return closed
-
-
-def _check_states(model: LinearModel, names: tuple[str, ...], picked: np.ndarray) -> None:
-    """Refuse a gain designed on a model whose states are not x = [dq; v - v0] (all 2 nv
-    ``names``) or its independent part (``picked``): a canonical model's momenta, an
-    orthonormal basis of a mechanism's nullspace, another robot."""
-    own = tuple(model.state_names)
-    if own in (tuple(names), tuple(names[k] for k in picked)):
-        return
-    raise ArgumentError("feedback", f"the gain was designed on model '{model.name}', whose "
-                                    f"states ({', '.join(own[:3])}{', ...' if len(own) > 3 else ''}"
-                                    f") are not the ones simulate feeds back: x = [dq; v - v0] "
-                                    f"({', '.join(names[k] for k in picked[:3])}, ...); design "
-                                    "it on the independent or penalty model with the "
-                                    "partitioned basis (pinlin.linearize's default)")
 
 
 __all__ = ["Inputs", "Law"]

@@ -101,6 +101,7 @@ class OpenChain:
         self.system, self.model, self.op = system, system.model, op
         self.nv = system.nv
         self.q_ref = op.q.copy()
+        self.centred = True   # q_ref is q0
         self.lie = system.nq != system.nv
         self.angles = chart_angles(system)
 
@@ -108,25 +109,27 @@ class OpenChain:
         if dx0.size != 2 * self.nv:
             raise ShapeError(f"dx0 must have 2 nv = {2 * self.nv} entries, got {dx0.size}")
         dq = dx0[:self.nv]
-        if beyond_chart(dq, self.angles):   # a rotation beyond the chart: centred at q
+        self.centred = not beyond_chart(dq, self.angles)
+        if self.centred:   # at q0: x = dq exactly, resolved relative to itself near q0
+            self.q_ref = self.op.q.copy()
+        else:              # a rotation beyond the chart: centred at q
             self.q_ref = pin.integrate(self.model, self.op.q, dq)
             dq = np.zeros(self.nv)
-        else:   # centred at q0: x = dq exactly, resolved relative to itself near q0
-            self.q_ref = self.op.q.copy()
-        self.offset = pin.difference(self.model, self.op.q, self.q_ref)
         return np.concatenate([dq, self.op.v + dx0[self.nv:]]), []
 
     def model_state(self, s: np.ndarray) -> np.ndarray:
-        """x = [difference(q0, q); v - v0] at chart state ``s`` (what a feedback reads). In a
-        vector space (nq = nv) it is the chart's constant offset difference(q0, q_ref) plus
-        dq: as smooth in s as s itself, where forming q = q_ref + dq first would round at
-        eps |q| (noise that a high gain amplifies into the right-hand side)."""
+        """x = [difference(q0, q); v - v0] at chart state ``s`` (what a feedback reads). While
+        the chart is centred at q0 (always, with 1-DoF joints only) it is dq itself, exactly
+        (difference(q0, integrate(q0, dq)) = dq for rotations below pi): as smooth in s as s
+        is, where forming q = q0 + dq first would round at eps |q| (noise that a high gain
+        amplifies into the right-hand side). After a re-centring it is computed through q.
+        A rotation of more than pi from q0 wraps (the log map), as x itself does."""
         nv = self.nv
-        if self.lie:
+        if self.centred:
+            dq = s[:nv].copy()
+        else:
             dq = pin.difference(self.model, self.op.q, pin.integrate(self.model, self.q_ref,
                                                                      s[:nv]))
-        else:
-            dq = self.offset + s[:nv]
         return np.concatenate([dq, s[nv:] - self.op.v])
 
     def rhs(self, t: float, s: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -149,7 +152,7 @@ class OpenChain:
         if not beyond_chart(s, self.angles):
             return None
         self.q_ref = pin.integrate(self.model, self.q_ref, s[:self.nv])
-        self.offset = pin.difference(self.model, self.op.q, self.q_ref)
+        self.centred = False
         return np.concatenate([np.zeros(self.nv), s[self.nv:]]), "chart"
 
 
@@ -161,6 +164,7 @@ class Mechanism:
         self.system, self.model, self.op = system, system.model, op
         self.cons, self.nv = system.constraints, system.nv
         self.q_ref = op.q.copy()
+        self.centred = True   # q_ref is q0
         self.lie = system.nq != system.nv
         self.angles = chart_angles(system)
         jac = self.cons.jacobian(op.q)
@@ -186,7 +190,7 @@ class Mechanism:
             raise ShapeError(f"dx0 must have 2 nv = {2 * nv} entries (all coordinates) or 2 nz "
                              f"= {2 * nz} (the independent ones), got {dx0.size}")
         self.q_ref = self.op.q.copy()
-        self.offset = np.zeros(nv)   # difference(q0, q_ref)
+        self.centred = True   # q_ref = q0: the chart coordinates c are x's positions
         G = self.cons.jacobian(self.op.q)[self.rows]
         self.cache = (np.zeros(nz), np.zeros(nv), self.op.q, G, self._basis(G))
         s = np.concatenate([dz, self.op.v[self.z] + dzdot])
@@ -248,7 +252,7 @@ class Mechanism:
         """Centre the chart at the configuration q (q_ref := q, c := 0; G and R are q's) and
         return the state there, (0, v[z])."""
         self.q_ref = q.copy()
-        self.offset = pin.difference(self.model, self.op.q, q)
+        self.centred = False
         self.cache = (np.zeros(self.z.size), np.zeros(self.nv), q, G, R)
         return np.concatenate([np.zeros(self.z.size), v[self.z]])
 
@@ -270,12 +274,12 @@ class Mechanism:
 
     def model_state(self, s: np.ndarray) -> np.ndarray:
         """x = [difference(q0, q); v - v0] at state ``s`` (all nv coordinates; what a feedback
-        reads): in a vector space the chart's offset plus its coordinates c, as for
-        :meth:`OpenChain.model_state`."""
+        reads): the chart coordinates c themselves while the chart is centred at q0 (always
+        with 1-DoF joints only), else through q, as :meth:`OpenChain.model_state`."""
         q, _, R = self._configure(s)
         v = R @ s[self.z.size:]
-        dq = pin.difference(self.model, self.op.q, q) if self.lie else \
-            self.offset + self.cache[1]
+        dq = self.cache[1].copy() if self.centred else \
+            pin.difference(self.model, self.op.q, q)
         return np.concatenate([dq, v - self.op.v])
 
     def rhs(self, t: float, s: np.ndarray, u: np.ndarray) -> np.ndarray:

@@ -466,12 +466,8 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
         if callable(feedback):
             raise ArgumentError("feedback", "expected a gain matrix K (the linear model of a "
                                             "law is its gain); a callable has none to compare")
-        gain = model_gain(model, feedback, "feedback")
-        model = model.closed_loop(gain)
-        wide = real_array(feedback[0] if isinstance(feedback, tuple) else feedback,
-                          "feedback", "a gain matrix")
-        if wide.ndim == 2 and wide.shape[1] != gain.shape[1]:   # over all 2 nv coordinates
-            gain = wide   # simulate applies the law the user gave
+        on_model, gain = model_gain(model, feedback, "feedback")
+        model = model.closed_loop(on_model)   # simulate applies the gain as given
     ma = modal(model)
     chosen = _select(ma, modes, direction is not None)
     drift = 0.0 if model.f0 is None else float(np.abs(model.f0).max(initial=0.0))

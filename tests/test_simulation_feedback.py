@@ -179,7 +179,7 @@ def test_a_high_gain_loop_is_stiff():
 
 
 @pytest.mark.parametrize("feedback, match", [
-    (np.zeros((1, 3)), r"shape \(1, 2\) \(inputs x the linear model's states"),
+    (np.zeros((1, 3)), r"shape \(1, 2\) \(inputs x states: u = -K x\), got shape \(1, 3\)"),
     (np.zeros((2, 2)), r"got shape \(2, 2\)"),
     (np.array([[np.nan, 0.0]]), "NaN or inf"),
     ([["1", "2"]], "got text"),
@@ -190,6 +190,7 @@ def test_a_high_gain_loop_is_stiff():
     (np.zeros, "calling it so raised TypeError"),              # callable by accident
     # 1e12 N*m/rad on a 1 kg*m^2 pendulum: 1e6 rad/s over 1e3 s, 1.6e8 periods
     (np.array([[1e12, 0.0]]), r"argument 'feedback'.*of the closed loop.*lower the gain"),
+    (lambda t, x: [x[5]], r"state \(2 nv = 2 numbers\).*raised IndexError"),
 ])
 def test_bad_feedback(feedback, match):
     with pytest.raises(pinlin.ArgumentError, match=match):
@@ -222,9 +223,21 @@ def test_a_gain_is_checked_against_the_model_it_was_designed_on():
     with pytest.raises(pinlin.ArgumentError, match=r"model 'ur5_arm', whose states \(p:"):
         pinlin.simulate("ur5_arm", t, feedback=(K, canonical))
     four_bar = pinlin.linearize("four_bar")
-    pinlin.simulate("four_bar", t, feedback=(np.ones((1, 2)), four_bar))
+    dx0 = [0.01, 0.0]
+    np.testing.assert_array_equal(
+        pinlin.simulate("four_bar", t, dx0, feedback=(np.ones((1, 2)), four_bar)).z,
+        pinlin.simulate("four_bar", t, dx0, feedback=np.ones((1, 2))).z)
     penalty = pinlin.linearize("four_bar", formulation="penalty")
-    pinlin.simulate("four_bar", t, feedback=(np.ones((1, 6)), penalty))
+    np.testing.assert_array_equal(
+        pinlin.simulate("four_bar", t, dx0, feedback=(np.ones((1, 6)), penalty)).z,
+        pinlin.simulate("four_bar", t, dx0, feedback=np.ones((1, 6))).z)
+    with pytest.raises(pinlin.ArgumentError, match=r"shape \(1, 6\).*got shape \(1, 2\)"):
+        pinlin.simulate("four_bar", t, feedback=(np.ones((1, 2)), penalty))   # K's width
+    # About another point: the upright pendulum's gain used about the hanging one.
+    upright = pinlin.linearize("pendulum", q=[np.pi])
+    with pytest.raises(pinlin.ArgumentError, match="designed about another point"):
+        pinlin.simulate("pendulum", t, [0.1, 0.0], feedback=(np.ones((1, 2)), upright))
+    pinlin.simulate("pendulum", t, [0.1, 0.0], q0=[np.pi], feedback=(np.ones((1, 2)), upright))
     orthonormal = pinlin.linearize("four_bar", basis="orthonormal")
     with pytest.raises(pinlin.ArgumentError, match=r"states \(q:z\[0\]"):
         pinlin.simulate("four_bar", t, feedback=(np.ones((1, 2)), orthonormal))

@@ -262,7 +262,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'if stiff > STIFF_LIMIT or rho > STIFF_RATIO * resolve:',
         'simulate calls a problem stiff when either criterion holds'),
     'held_sample_searchsorted_left': (
-        'pinlin/simulation.py',
+        'pinlin/simulation_inputs.py',
         'k = max(int(np.searchsorted(self.t, t, side="right")) - 1, 0)',
         'k = max(int(np.searchsorted(self.t, t, side="left")) - 1, 0)',
         'simulate holds the previous sample at each sample time'),
