@@ -340,3 +340,54 @@ def test_tv_lqr_along_a_swing_follows_the_linear_time_varying_loop():
     slope = np.polyfit(np.log(amplitudes), np.log(errors), 1)[0]
     assert 1.9 < slope < 2.1, (slope, errors)
     assert errors[0] > 1e2 * 1e-10
+
+
+def test_a_floating_base_under_joint_feedback_follows_its_linear_closed_loop():
+    """solo12 floating in zero gravity, its 12 joints under PD feedback (K_q = 20, K_v = 2
+    N*m*s/rad; the base free): x includes the base's 6 chart coordinates (a Lie group), and
+    small motions follow expm((A - B K) t) x0 up to the quadratic remainder (slope 2), the
+    base's rigid modes included."""
+    scene = pinlin.Scene.from_robot("solo12", base="free", effects={})
+    model = pinlin.linearize(scene)
+    nv = scene.system.nv
+    K = np.zeros((12, 2 * nv))
+    K[:, 6:nv] = 20.0 * np.eye(12)
+    K[:, nv + 6:] = 2.0 * np.eye(12)
+    closed = model.A - model.B @ K
+    direction = np.random.default_rng(7).standard_normal(2 * nv)
+    direction /= np.abs(direction).max()
+    t = np.linspace(0.0, 0.5, 11)
+    amplitudes = np.array([1e-3, 2e-3, 4e-3])
+    errors = []
+    for a in amplitudes:
+        sim = pinlin.simulate(scene, t, dx0=a * direction, feedback=K)
+        linear = np.array([sla.expm(closed * ti) @ (a * direction) for ti in t])
+        errors.append(np.abs(sim.x - linear).max())
+    slope = np.polyfit(np.log(amplitudes), np.log(errors), 1)[0]
+    assert 1.9 < slope < 2.1, (slope, errors)
+    assert errors[0] > 1e2 * 1e-10
+
+
+@pytest.mark.parametrize("rotation", [0.3, 1.5])
+def test_the_state_a_feedback_reads_is_the_difference_from_q0(rotation):
+    """OpenChain.model_state against pin.difference(q0, q) of the configuration the chart
+    state stands for: centred at q0 (a base rotated 0.3 rad: the chart coordinates
+    themselves) and re-centred (1.5 rad, beyond the chart's 1 rad: through q), before and
+    after a step of the chart."""
+    from pinlin.simulation_ode import OpenChain
+
+    scene = pinlin.Scene.from_robot("solo12", base="free", effects={})
+    system = scene.system
+    op = pinlin.operating_point(scene)
+    dyn = OpenChain(system, op)
+    nv = system.nv
+    dx0 = np.zeros(2 * nv)
+    dx0[3:6] = rotation * np.array([0.6, 0.0, 0.8])
+    dx0[6:nv] = 0.1
+    dx0[nv:] = 0.2
+    s0, _ = dyn.initial_state(dx0)
+    assert dyn.centred == (rotation < 1.0)
+    for s in (s0, s0 + 0.05 * np.random.default_rng(2).standard_normal(s0.size)):
+        q, v = dyn.state(s)
+        expected = np.concatenate([pin.difference(system.model, op.q, q), v - op.v])
+        np.testing.assert_allclose(dyn.model_state(s), expected, rtol=0, atol=1e-12)
