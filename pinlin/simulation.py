@@ -335,12 +335,15 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             coordinates [dz; dz'], or (nu, 2 nv) on all), as ``control.lqr(model.A,
             model.B, Q, R)[0]`` returns it; or a callable feedback(t, x) -> (nu,) [N*m or N]
             of the time [s] and that state (2 nz for a mechanism); or a pair (K, model), the
-            gain with the model it was designed on, whose state names are checked (a
-            canonical model's [p; q] or an orthonormal basis are refused). x is measured from
-            the point simulated, (q0, v0): with v0 given the law steers back to that state.
-            The integrator calls a callable at trial states too (its stages, rejected steps,
-            the stiffness test), not in time order: make it a pure function of (t, x); an
-            exception it raises after the first call reaches the caller unchanged.
+            gain with the model it was designed on, whose state names, size and operating
+            point are checked (a canonical model's [p; q], an orthonormal basis or a gain
+            designed about another point are refused). x is measured from the point
+            simulated, (q0, v0): with v0 given the law steers back to that state; a rotation
+            of more than pi from q0 wraps (the log map). The integrator calls a callable at
+            trial states too (its stages, rejected steps, the stiffness test), not in time
+            order: make it a pure function of (t, x). Its first call is made before the
+            integration (an error there is refused naming ``feedback``); an exception it
+            raises later reaches the caller unchanged.
         q0, v0: The point to simulate about instead of the scene's, resolved as
             ``pinlin.operating_point(scene, q=q0, v=v0)``: q0 alone (nq) keeps the scene's
             ``solve`` (u0 holds q0 at rest); with v0 (nv) [rad/s or m/s] the state is given
