@@ -8,7 +8,8 @@ when all pass. A snippet that no longer exists in the source is reported as *sta
 code moved: update the list). Not run by CI: it costs one suite run per survivor (~3 min)
 and a few seconds per caught one.
 
-Usage: python validation/mutation.py [NAME ...]      (default: all)
+Usage: python validation/mutation.py [--jobs K] [NAME ...]    (default: all, one at a time;
+--jobs 2 runs two mutations at once, each in its own copy: half the time on two cores)
 Writes validation/reports/mutation.md.
 """
 
@@ -16,10 +17,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import queue
 import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -408,22 +411,38 @@ def run_one(name: str, work: Path) -> tuple[str, str, float]:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("names", nargs="*", choices=[[], *MUTATIONS], metavar="NAME")
-    names = parser.parse_args(argv).names or list(MUTATIONS)
-    results = []
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="mutations run at once, each in its own copy (default 1)")
+    args = parser.parse_args(argv)
+    names = args.names or list(MUTATIONS)
+    jobs = max(1, args.jobs)
     with tempfile.TemporaryDirectory(prefix="pinlin-mutation-") as tmp:
-        work = Path(tmp)
-        copy_checkout(work)
-        env = {**os.environ, "PYTHONPATH": str(work), "PYTHONDONTWRITEBYTECODE": "1"}
+        copies: queue.Queue[Path] = queue.Queue()
+        for j in range(jobs):
+            work = Path(tmp) / f"copy{j}"
+            work.mkdir()
+            copy_checkout(work)
+            copies.put(work)
+        first = Path(tmp) / "copy0"
+        env = {**os.environ, "PYTHONPATH": str(first), "PYTHONDONTWRITEBYTECODE": "1"}
         baseline = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p",
-                                   "no:cacheprovider", "-W", "ignore"], cwd=work, env=env,
+                                   "no:cacheprovider", "-W", "ignore"], cwd=first, env=env,
                                   capture_output=True, text=True, check=False)
         if baseline.returncode != 0:
             sys.exit("the unmutated copy fails its own tests: fix that first\n"
                      + baseline.stdout[-2000:])
-        for name in names:
-            outcome, where, seconds = run_one(name, work)
-            results.append((name, outcome, where, seconds))
+
+        def planted(name: str) -> tuple[str, str, str, float]:
+            work = copies.get()    # a copy no other mutation is using
+            try:
+                outcome, where, seconds = run_one(name, work)
+            finally:
+                copies.put(work)
             print(f"{name:36s} {outcome:9s} {seconds:6.1f} s  {where}", flush=True)
+            return name, outcome, where, seconds
+
+        with ThreadPoolExecutor(jobs) as pool:
+            results = list(pool.map(planted, names))   # in the list's order
     caught = sum(r[1] == "caught" for r in results)
     if len(names) < len(MUTATIONS):
         print(f"{caught} of {len(results)} caught (a subset: the report is written only for "
