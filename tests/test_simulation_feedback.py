@@ -50,6 +50,17 @@ def _deadline(seconds: int):
         signal.signal(signal.SIGALRM, previous)
 
 
+def _remainder(scene, t, direction, K, closed, amplitudes, states):
+    """(log-log slope, errors): max |simulate(feedback=K)'s ``states`` - expm(closed t) x0|
+    for x0 = a ``direction`` at each amplitude a."""
+    errors = []
+    for a in amplitudes:
+        sim = pinlin.simulate(scene, t, dx0=a * direction, feedback=K)
+        linear = np.array([sla.expm(closed * ti) @ (a * direction) for ti in t])
+        errors.append(np.abs(getattr(sim, states) - linear).max())
+    return np.polyfit(np.log(amplitudes), np.log(errors), 1)[0], errors
+
+
 def _gain(model: pinlin.LinearModel, poles: list[float]) -> np.ndarray:
     """A state-feedback gain placing the closed loop's poles (scipy's place_poles: u = -K x)."""
     return place_poles(model.A, model.B, poles).gain_matrix
@@ -134,12 +145,7 @@ def test_small_motions_follow_the_linear_closed_loop(name):
     direction /= np.abs(direction).max()
     t = np.linspace(0.0, 0.5, 21)
     amplitudes = np.array([1e-3, 2e-3, 4e-3])
-    errors = []
-    for a in amplitudes:
-        sim = pinlin.simulate(name, t, dx0=a * direction, feedback=K)
-        linear = np.array([sla.expm(closed * ti) @ (a * direction) for ti in t])
-        errors.append(np.abs(sim.z - linear).max())
-    slope = np.polyfit(np.log(amplitudes), np.log(errors), 1)[0]
+    slope, errors = _remainder(name, t, direction, K, closed, amplitudes, "z")
     assert 1.9 < slope < 2.1
     # The remainder, not the integrator (rtol 1e-10 of |x| ~ 1e-3, atol 1e-12, over some
     # 50 steps: ~1e-10), is measured; the loop damps the motion, so the remainder is small.
@@ -357,13 +363,8 @@ def test_a_floating_base_under_joint_feedback_follows_its_linear_closed_loop():
     direction = np.random.default_rng(7).standard_normal(2 * nv)
     direction /= np.abs(direction).max()
     t = np.linspace(0.0, 0.5, 11)
-    amplitudes = np.array([1e-3, 2e-3, 4e-3])
-    errors = []
-    for a in amplitudes:
-        sim = pinlin.simulate(scene, t, dx0=a * direction, feedback=K)
-        linear = np.array([sla.expm(closed * ti) @ (a * direction) for ti in t])
-        errors.append(np.abs(sim.x - linear).max())
-    slope = np.polyfit(np.log(amplitudes), np.log(errors), 1)[0]
+    slope, errors = _remainder(scene, t, direction, K, closed, np.array([1e-3, 2e-3, 4e-3]),
+                               "x")
     assert 1.9 < slope < 2.1, (slope, errors)
     assert errors[0] > 1e2 * 1e-10
 
