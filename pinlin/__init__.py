@@ -27,6 +27,7 @@ from .exceptions import (
     UrdfError,
 )
 from .frequency import FrequencyResponse, bode, frequency_response
+from .gain_files import read_gain, write_gain
 from .html_report import write_html_report
 from .linear_model import LinearModel
 from .linearization import linearize, operating_point
@@ -101,11 +102,13 @@ __all__ = [
     "mode_motion",
     "operating_point",
     "plot_modes",
+    "read_gain",
     "response",
     "set_memory_limit",
     "simulate",
     "step",
     "trajectory_columns",
     "validity",
+    "write_gain",
     "write_html_report",
 ]

@@ -336,6 +336,21 @@ def _write_results(out: Path | None, plot: Path | None, t: np.ndarray,
     return written
 
 
+def _gain(path: str | None, model) -> tuple[np.ndarray, object] | None:
+    """--feedback FILE as the pair (K, model) that simulate and validity check against the
+    model's states (None without the option)."""
+    if path is None:
+        return None
+    from .gain_files import read_gain
+
+    return read_gain(path, model), model
+
+
+def _loop_line(path: str, model) -> str:
+    return (f"closed loop: u = u0 - K x, K ({len(model.input_names)} inputs x "
+            f"{len(model.state_names)} states) from {path}")
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .formulations.constrained import constrained_effects
     from .linearization import linearize
@@ -347,14 +362,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     scene = Scene.resolve(args.target)
     model = linearize(scene)
     x0 = _initial(model, args.x0)
+    gain = _gain(args.feedback, model)
     with options_named({"dx0": "--x0", "rtol": "--rtol", "atol": "--atol",
-                         "method": "--method"}):
-        sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method)
+                         "method": "--method", "feedback": "--feedback"}):
+        sim = simulate(scene, t, dx0=x0, rtol=args.rtol, atol=args.atol, method=args.method,
+                       feedback=gain)
     n = len(sim.independent_names) // 2      # z: the linear model's states
     effects = constrained_effects(scene.system)
     lines = [f"simulated '{scene.name}' (nonlinear, the scene's effects: "
              f"{', '.join(effects) or 'none'}) over {t[-1]:g} s: "
              f"{sim.info.get('method')}, {plural(int(sim.info.get('nfev', 0)), 'evaluation')}"]
+    if gain is not None:
+        lines.append(_loop_line(args.feedback, model))
     if sim.drift is not None and sim.drift.size and np.any(sim.drift):
         lines.append(f"constraint drift: |Phi| <= {sim.drift[:, 0].max():.1e}, |Phi_q v| <= "
                      f"{sim.drift[:, 1].max():.1e}")
@@ -366,7 +385,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                  f"{final or 'none (no states: the constraints hold everything)'}")
     columns = {name: sim.z[:, k] for k, name in enumerate(sim.independent_names)}
     columns.update({f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)})
-    lines += _write_results(out, plot, sim.t, columns, f"{scene.name}: nonlinear simulation",
+    if gain is not None:     # the inputs the loop applied
+        columns.update({name: sim.u[:, k] for k, name in enumerate(sim.input_names)})
+    lines += _write_results(out, plot, sim.t, columns, f"{scene.name}: nonlinear simulation"
+                            + (" in closed loop" if gain is not None else ""),
                             [(name, sim.t, sim.z[:, k], "-")
                              for k, name in enumerate(sim.independent_names[:n])])
     print("\n".join(lines))
@@ -410,6 +432,10 @@ def _cmd_response(args: argparse.Namespace) -> int:
     model = linearize(scene)
     x0 = _initial(model, args.x0)
     u = _signals(args, model)
+    gain = _gain(args.feedback, model)
+    open_loop = model
+    if gain is not None:
+        model = model.closed_loop(gain[0])
     with options_named({"x0": "--x0", "method": "--method",
                         "u": "--step/--impulse/--harmonic"}):
         res = response(model, t, x0=x0, u=u, method=args.method)
@@ -422,13 +448,15 @@ def _cmd_response(args: argparse.Namespace) -> int:
         worst = int(np.argmax(peak))
         lines = [f"linear response of '{model.name}' ({args.method}) over {t[-1]:g} s: "
                  f"largest excursion {peak[worst]:.6g} on {model.state_names[worst]}"]
+    if gain is not None:
+        lines.append(_loop_line(args.feedback, open_loop))
     curves = [(name, res.t, res.x[:, k], "-") for k, name in enumerate(model.state_names[:n])]
     columns = {name: res.x[:, k] for k, name in enumerate(model.state_names)}
     if args.nonlinear:
         from .simulation import simulate
 
-        with options_named({"dx0": "--x0"}):
-            sim = simulate(scene, t, dx0=x0)
+        with options_named({"dx0": "--x0", "feedback": "--feedback"}):
+            sim = simulate(scene, t, dx0=x0, feedback=gain)
         diff = np.abs(sim.z - res.x).max(initial=0.0)
         scale = max(float(np.abs(res.x).max(initial=0.0)), np.finfo(float).tiny)
         lines.append(f"nonlinear simulation from the same state: max |x_nl - x_lin| = "
@@ -458,15 +486,19 @@ def _cmd_validity(args: argparse.Namespace) -> int:
     if folder is not None and folder.is_dir():    # a file there is refused before the run
         for path in plot_paths(folder, scene.name):
             check_file_target(path)
+    gain = _gain(args.feedback, linearize(scene)) if args.feedback is not None else None
     modes = None
     if args.modes is not None:    # rows of the mode table, numbered from 1 as printed
-        modes = mode_rows(modal(linearize(scene)), args.modes, "--modes")
+        model = linearize(scene)
+        modes = mode_rows(modal(model if gain is None else model.closed_loop(gain[0])),
+                          args.modes, "--modes")
     with options_named({"amplitudes": "--amplitudes", "periods": "--periods",
                         "tolerance": "--tolerance", "modes": "--modes",
                         "direction": "--direction", "rtol": "--tolerance",
-                        "atol": "--amplitudes"}):
+                        "atol": "--amplitudes", "feedback": "--feedback"}):
         result = validity(scene, amplitudes=args.amplitudes, periods=args.periods,
-                          tolerance=args.tolerance, modes=modes, direction=args.direction)
+                          tolerance=args.tolerance, modes=modes, direction=args.direction,
+                          feedback=gain)
     print(result.table())
     if folder is not None:
         make_folder(folder)
@@ -507,6 +539,10 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     tra.add_argument("--no-progress", action="store_true", help="no progress bar")
     tra.set_defaults(func=_cmd_trajectory)
 
+    feedback_help = ("close the loop u = u0 - K x with the gain in GAIN: a .csv whose header "
+                     "is input,<state>,... and whose lines are u:<name>,<gains> (the names "
+                     "checked against the linear model's), or a bare .npy (inputs x states)")
+
     def timed(p: argparse.ArgumentParser) -> None:
         p.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
         p.add_argument("--t-end", type=float, required=True, metavar="T",
@@ -519,6 +555,8 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
                        help="write the time histories (.csv or .npz)")
         p.add_argument("--plot", metavar="FILE.png", type=file_name("--plot"),
                        help="plot the position histories")
+        p.add_argument("--feedback", metavar="GAIN", type=file_name("--feedback"),
+                       help=feedback_help)
 
     sim = sub.add_parser("simulate", help="the scene's nonlinear dynamics about its operating "
                                           "point, with exactly its effects")
@@ -556,5 +594,7 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     val.add_argument("--direction", default=None,
                      help="a coordinate name instead of the modes, e.g. elbow or v:elbow")
     val.add_argument("--out-dir", default=None, help="write the plots into this folder")
+    val.add_argument("--feedback", metavar="GAIN", type=file_name("--feedback"),
+                     help=feedback_help + "; the closed loop's modes are compared")
     val.set_defaults(func=_cmd_validity)
     return [tra, sim, res, val]

@@ -65,6 +65,14 @@ def _listed(names: Sequence[str]) -> str:
     return ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
 
 
+def same_point(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether a gain's design point ``a`` (q or v) is ``b``: same size, equal to 1e-9 of b's
+    largest entry (or 1e-9 absolute; a point printed to 17 digits, or recomputed by the same
+    solver, passes; an upright pendulum's q = pi against the hanging 0 does not)."""
+    return a.shape == b.shape and bool(np.abs(a - b).max(initial=0.0) <= 1e-9 * max(
+        1.0, float(np.abs(b).max(initial=0.0))))
+
+
 def designed_gain(K: object, n_inputs: int, widths: Sequence[int],
                   states: Sequence[tuple[str, ...]], point: OperatingPoint | None,
                   name: str = "K") -> np.ndarray:
@@ -91,8 +99,7 @@ def designed_gain(K: object, n_inputs: int, widths: Sequence[int],
     there = designed.operating_point
     if point is not None and there is not None:
         for what, a, b in (("q", there.q, point.q), ("v", there.v, point.v)):
-            if a.shape != b.shape or np.abs(a - b).max(initial=0.0) > \
-                    1e-9 * max(1.0, float(np.abs(b).max(initial=0.0))):
+            if not same_point(a, b):
                 raise ArgumentError(name, f"the gain was designed about another point: its "
                                           f"model's {what} = {np.round(a, 6).tolist()!s:.80}, "
                                           f"this one's {np.round(b, 6).tolist()!s:.80}")

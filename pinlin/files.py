@@ -81,7 +81,7 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
     ".npz": (b"PK\x03\x04", b"PK\x05\x06"),
     ".mat": (b"MATLAB",),
     ".json": (b"{",),
-    ".csv": (b"t,",),
+    ".csv": (b"t,", b"# pinlin gain:"),   # a time history; a gain (pinlin.gain_files)
 }
 
 
@@ -145,6 +145,8 @@ def _pinlin_content(target: Path, suffix: str, kind: str | None = None) -> bool:
         if suffix in (".html", ".htm"):
             return _HTML_TITLE in head
         if suffix == ".csv":
+            if head.startswith(b"# pinlin gain:"):
+                return True
             columns = head.split(b"\n", 1)[0].split(b",")
             return columns[0] == b"t" and len(columns) > 1 and all(b":" in c
                                                                    for c in columns[1:])

@@ -171,13 +171,34 @@ def _csv_fields(path: Path, number: int, line: str) -> list[str]:
         raise ModelFileError(path, f"line {number}: not a line of CSV values: {exc}") from None
 
 
+def csv_text(path: Path, raw: bytes) -> str:
+    """A CSV file's bytes as text (UTF-8, a byte-order mark dropped)."""
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ModelFileError(path, f"not UTF-8 text: {exc}") from None
+
+
+def csv_number(path: Path, where: str, cell: str) -> float:
+    """The finite number in a CSV ``cell``; ``where`` ("line 3, column 'q:elbow'") names it
+    in the error."""
+    try:
+        # float() reads "1_0" as 10 and any script's digits ("\u0663" as 3): not numbers a
+        # CSV writes
+        if "_" in cell or not cell.isascii():
+            raise ValueError(cell)
+        value = float(cell)
+    except ValueError:
+        raise ModelFileError(path, f"{where}: {cell.strip()!r:.40} is not a number") from None
+    if not math.isfinite(value):
+        raise ModelFileError(path, f"{where}: {cell.strip()!r:.40} is not a finite number")
+    return value
+
+
 def _read_csv_states(path: Path, raw: bytes, system: System
                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None,
                                 np.ndarray | None]:
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ModelFileError(path, f"not UTF-8 text: {exc}") from None
+    text = csv_text(path, raw)
     lines = _content_lines(text)
     if not lines:
         raise ModelFileError(path, "empty: expected a header line naming the columns, then "
@@ -213,18 +234,7 @@ def _read_csv_states(path: Path, raw: bytes, system: System
             raise ModelFileError(path, f"line {number}: {len(fields)} values, the header "
                                        f"names {len(header)} columns")
         for col, cell in enumerate(fields):
-            try:
-                # float() reads "1_0" as 10 and any script's digits ("\u0663" as 3): not
-                # numbers a CSV writes
-                if "_" in cell or not cell.isascii():
-                    raise ValueError(cell)
-                values[row, col] = float(cell)
-            except ValueError:
-                raise ModelFileError(path, f"line {number}, column '{header[col]}': "
-                                           f"{cell.strip()!r} is not a number") from None
-            if not math.isfinite(values[row, col]):
-                raise ModelFileError(path, f"line {number}, column '{header[col]}': "
-                                           f"{cell.strip()!r} is not a finite number")
+            values[row, col] = csv_number(path, f"line {number}, column '{header[col]}'", cell)
     index = {name: i for i, name in enumerate(header)}
 
     def columns(names: list[str]) -> np.ndarray:

@@ -1,0 +1,210 @@
+"""Gain files: a state-feedback gain K (u = -K x) for the command line's ``--feedback``.
+
+Two formats:
+
+- ``.csv``, named: a header line ``input,<state>,<state>,...`` naming the linear model's
+  states (``q:elbow``, ``v:elbow``, as ``model.state_names``), then one line per input,
+  starting with its name (``u:elbow``, as ``model.input_names``) and giving its gains
+  [N*m/rad, N*m*s/rad, or N/m ...]. Rows and columns in any order; every state and every input
+  exactly once. Lines starting with ``#`` and blank lines are skipped, but for the design
+  point :func:`write_gain` records, ``# q0 = ...`` and ``# v0 = ...`` (comma-separated, as
+  the model's operating point q and v): where present it must be the model's (q and v to
+  1e-9 relative, as :func:`pinlin.simulate` checks a pair (K, model)). The names are
+  checked against the model: a gain written for another scene or formulation (a canonical
+  model's ``p:`` states), or about another point, is refused instead of being applied to the
+  wrong coordinates.
+- ``.npy``: the matrix alone (n_inputs x n_states, in the model's orders), as ``np.save``
+  writes ``control.lqr``'s K; never unpickled. Only its shape is checked.
+
+:func:`write_gain` writes the named form (atomically) from Python.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .closed_loop import same_point
+from .exceptions import ModelFileError
+from .files import as_path, check_file_target, write_text_atomic
+from .linear_model import LinearModel
+from .model_files import _NPY_HEADERS
+from .trajectory_files import _content_lines, _csv_fields, _file, csv_number, csv_text
+
+GAIN_FORMATS = (".csv", ".npy")
+#: The header's first field.
+ROW_LABEL = "input"
+#: The first line of a gain file pinlin writes (what lets it replace its own file).
+MARKER = "# pinlin gain:"
+
+
+def read_gain(path: str | Path, model: LinearModel) -> np.ndarray:
+    """The gain K (n_inputs x n_states, in ``model``'s orders) of a gain file.
+
+    Raises:
+        ArgumentError: ``path`` is not a path.
+        ModelFileError: missing file, another suffix, a pickled or corrupt .npy, a wrong
+            shape, names that are not the model's (naming the line and the name), text that
+            is not a finite number (naming line and column).
+    """
+    path = as_path(path)
+    raw = _file(path, GAIN_FORMATS, "gain")
+    if path.suffix == ".npy":
+        K = _read_npy(path, raw)
+        want = (model.n_inputs, model.n_states)
+        if K.shape != want:
+            raise ModelFileError(path, f"holds a {'x'.join(map(str, K.shape))} array; model "
+                                       f"'{model.name}' needs {want[0]} x {want[1]} (inputs x "
+                                       "states)")
+        return K
+    return _read_csv(path, raw, model)
+
+
+def write_gain(path: str | Path, K: np.ndarray, model: LinearModel) -> Path:
+    """Write ``K`` (n_inputs x n_states of ``model``) as a named .csv gain file (17
+    significant digits: read back bit for bit). Never replaces a file pinlin did not write.
+
+    Raises:
+        ModelFileError: not a .csv path, or K of the wrong shape or not finite.
+    """
+    path = as_path(path)
+    if path.suffix != ".csv":
+        raise ModelFileError(path, "a gain file is written as .csv (names checked on "
+                                   "reading); np.save writes the bare .npy form")
+    K = np.asarray(K, dtype=float)
+    if K.shape != (model.n_inputs, model.n_states) or not np.all(np.isfinite(K)):
+        raise ModelFileError(path, f"expected a finite {model.n_inputs} x {model.n_states} "
+                                   f"gain for model '{model.name}', got shape {K.shape}")
+    check_file_target(path)
+    lines = [f"{MARKER} u = -K x about the operating point of '{model.name}'"]
+    point = model.operating_point
+    if point is not None:
+        lines += [f"# {key}0 = {','.join(repr(float(x)) for x in getattr(point, key))}"
+                  for key in ("q", "v")]
+    lines.append(",".join((ROW_LABEL, *model.state_names)))
+    lines += [",".join((name, *(repr(float(k)) for k in row)))
+              for name, row in zip(model.input_names, K, strict=True)]
+    write_text_atomic(path, "\n".join(lines) + "\n")
+    return path
+
+
+def _read_npy(path: Path, raw: bytes) -> np.ndarray:
+    """The array of a .npy file, its header read first: no pickles, and no allocation beyond
+    the bytes the file holds."""
+    fh = io.BytesIO(raw)
+    try:
+        version = np.lib.format.read_magic(fh)
+        if version not in _NPY_HEADERS:
+            raise ValueError(f"format version {version} is not one numpy writes")
+        shape, _, dtype = _NPY_HEADERS[version](fh)
+    except ValueError as exc:
+        raise ModelFileError(path, f"not a .npy array: {exc}") from None
+    if dtype.hasobject:
+        raise ModelFileError(path, "holds Python objects (a pickle), which pinlin never loads")
+    if dtype.kind not in "fiu" or len(shape) != 2:
+        raise ModelFileError(path, f"holds a {len(shape)}-D array of {dtype}; expected a 2-D "
+                                   "array of numbers (inputs x states)")
+    if math.prod(shape) * dtype.itemsize > len(raw) - fh.tell():
+        raise ModelFileError(path, f"its header declares shape {shape} but the file is "
+                                   f"{len(raw)} bytes")
+    try:
+        K = np.load(io.BytesIO(raw), allow_pickle=False).astype(float)
+    except (ValueError, OSError, EOFError) as exc:
+        raise ModelFileError(path, f"not a .npy array: {exc}") from None
+    if not np.all(np.isfinite(K)):
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(K))[0])
+        raise ModelFileError(path, f"entry {list(bad)} is {K[bad]}, not a finite number")
+    return K
+
+
+def _read_csv(path: Path, raw: bytes, model: LinearModel) -> np.ndarray:
+    text = csv_text(path, raw)
+    lines = _content_lines(text)
+    if not lines:
+        raise ModelFileError(path, f"empty: expected a header '{ROW_LABEL},<state>,...' "
+                                   "naming the model's states, then one line per input")
+    head_line, header = lines[0][0], [c.strip() for c in _csv_fields(path, *lines[0])]
+    states, inputs = model.state_names, model.input_names
+    if header[0] != ROW_LABEL:
+        raise ModelFileError(path, f"line {head_line}: the header starts with "
+                                   f"{header[0]!r:.40}; expected '{ROW_LABEL}' (the column of "
+                                   "input names), then the states, e.g. "
+                                   f"'{ROW_LABEL},{','.join(states[:2])},...'")
+    column = _index(path, head_line, header[1:], states, "state", model.name)
+    _check_point(path, text, model)
+    K = np.full((len(inputs), len(states)), np.nan)
+    seen: dict[str, int] = {}
+    for number, line in lines[1:]:
+        fields = [c.strip() for c in _csv_fields(path, number, line)]
+        if len(fields) != len(header):
+            raise ModelFileError(path, f"line {number}: {len(fields)} values, the header "
+                                       f"names {len(header)} columns")
+        name = fields[0]
+        if name in seen:
+            raise ModelFileError(path, f"line {number}: input '{name}' appears twice (first "
+                                       f"on line {seen[name]})")
+        seen[name] = number
+        if name not in inputs:
+            raise ModelFileError(path, f"line {number}: {name!r:.40} is not an input of model "
+                                       f"'{model.name}'; expected one of "
+                                       f"{', '.join(inputs) or '(none: it has no inputs)'}")
+        row = inputs.index(name)
+        for k, cell in enumerate(fields[1:]):
+            K[row, column[k]] = csv_number(path, f"line {number}, column '{header[1 + k]}'",
+                                           cell)
+    missing = [name for name in inputs if name not in seen]
+    if missing:
+        raise ModelFileError(path, f"no line for input{'s' if len(missing) > 1 else ''} "
+                                   f"{', '.join(missing)} of model '{model.name}'")
+    return K
+
+
+def _check_point(path: Path, text: str, model: LinearModel) -> None:
+    """The design point of the comment lines ``# q0 = ...`` and ``# v0 = ...`` (written by
+    :func:`write_gain`; optional) against the model's operating point, as
+    :func:`pinlin.simulate` checks a pair (K, model): a gain designed about the upright
+    pendulum is not applied to the hanging one."""
+    point = model.operating_point
+    for number, line in enumerate(text.splitlines(), start=1):
+        head, sep, values = line.partition("=")
+        key = head.strip().removeprefix("#").strip()
+        if not line.lstrip().startswith("#") or not sep or key not in ("q0", "v0") \
+                or point is None:
+            continue
+        try:
+            there = np.array([float(x) for x in values.split(",")])
+        except ValueError:
+            raise ModelFileError(path, f"line {number}: the design point {key} must be "
+                                       f"numbers separated by commas, got {values.strip()!r:.40}"
+                                 ) from None
+        here = getattr(point, key[0])
+        if not same_point(there, here):
+            raise ModelFileError(path, f"line {number}: the gain was designed about another "
+                                       f"point, {key} = {np.round(there, 6).tolist()!s:.60}; "
+                                       f"model '{model.name}' is linearized about "
+                                       f"{np.round(here, 6).tolist()!s:.60} (delete the line "
+                                       "to apply the gain there anyway)")
+
+
+def _index(path: Path, line: int, names: list[str], expected: tuple[str, ...], what: str,
+           model: str) -> list[int]:
+    """Column -> position in ``expected`` of the header's ``names``: each exactly once."""
+    for k, name in enumerate(names):
+        if name in names[:k]:
+            raise ModelFileError(path, f"line {line}: {what} '{name}' appears twice")
+        if name not in expected:
+            raise ModelFileError(path, f"line {line}: {name!r:.40} is not a {what} of model "
+                                       f"'{model}'; expected {', '.join(expected)}")
+    missing = [name for name in expected if name not in names]
+    if missing:
+        raise ModelFileError(path, f"line {line}: missing {what}{'s' if len(missing) > 1 else ''}"
+                                   f" {', '.join(missing[:4])}"
+                                   f"{f' and {len(missing) - 4} more' if len(missing) > 4 else ''}"
+                                   f" of model '{model}'")
+    return [expected.index(name) for name in names]
+
+
+__all__ = ["GAIN_FORMATS", "read_gain", "write_gain"]
