@@ -33,6 +33,11 @@ if TYPE_CHECKING:
     from .operating_point import OperatingPoint
 
 
+#: Largest gain entry taken (as :data:`pinlin.modal.ENTRY_LIMIT` for a model's matrices): a
+#: 1e155 velocity gain sent the stiff integrator's Jacobian to inf and out with a traceback.
+GAIN_LIMIT = 1e150
+
+
 def is_pair(K: object) -> bool:
     """Whether ``K`` is a pair (gain, the LinearModel it was designed on)."""
     from .linear_model import LinearModel
@@ -58,6 +63,11 @@ def gain_matrix(K: object, n_inputs: int, widths: Sequence[int], name: str = "K"
         raise ArgumentError(name, f"expected {what}, got shape {given}")
     if not np.all(np.isfinite(gain)):
         raise ArgumentError(name, "the gain matrix contains NaN or inf")
+    largest = float(np.abs(gain).max(initial=0.0))
+    if largest > GAIN_LIMIT:
+        raise ArgumentError(name, f"the gain matrix has entries beyond {GAIN_LIMIT:g} "
+                                  f"({largest:.3g}): K x and the closed loop's products overflow "
+                                  "float64")
     return gain
 
 

@@ -81,8 +81,10 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
     ".npz": (b"PK\x03\x04", b"PK\x05\x06"),
     ".mat": (b"MATLAB",),
     ".json": (b"{",),
-    ".csv": (b"t,", b"# pinlin gain:"),   # a time history; a gain (pinlin.gain_files)
+    ".csv": (b"t,", b"# pinlin gain:"),   # a time history; a gain (GAIN_MARKER)
 }
+#: The first bytes of a gain file (:mod:`pinlin.gain_files`).
+GAIN_MARKER = b"# pinlin gain:"
 
 
 #: Data formats whose signature any file of that kind has (every JSON object starts with
@@ -96,7 +98,10 @@ _NPZ_MEMBERS = {
     "model": ({"A.npy", "meta.npy", "state_names.npy"}, {f"{k}.npy" for k in _MODEL_ARRAYS}),
     "history": ({"t.npy", "names.npy", "values.npy"}, {"t.npy", "names.npy", "values.npy"})}
 _JSON_START = b'{\n "state_names"'
-_KIND_NAMES = {"model": "model (linear or trajectory)", "history": "time history"}
+_KIND_NAMES = {"model": "model (linear or trajectory)", "history": "time history",
+               "gain": "gain"}
+#: The kinds of pinlin's files that share a suffix, told apart by their content.
+_KINDS = {".npz": ("model", "history"), ".csv": ("history", "gain")}
 
 
 #: The text chunk every PNG pinlin writes carries (``metadata=PNG_METADATA`` for matplotlib),
@@ -116,8 +121,8 @@ def _pinlin_content(target: Path, suffix: str, kind: str | None = None) -> bool:
     (``q:...``), the arrays of a model, trajectory or history in an .npz or .mat (read from
     the archive's listing, not the data), a model's first key in .json; other kinds are told by
     their head alone. ``kind`` ("model": a model or trajectory model, "history": a time
-    history) narrows an .npz to what the caller writes: a history does not replace a saved
-    model, nor a model a history."""
+    history, "gain": a gain file) narrows an .npz or .csv to what the caller writes: a history
+    does not replace a saved model or a gain, nor a model or a gain a history."""
     import zipfile
 
     try:
@@ -145,8 +150,8 @@ def _pinlin_content(target: Path, suffix: str, kind: str | None = None) -> bool:
         if suffix in (".html", ".htm"):
             return _HTML_TITLE in head
         if suffix == ".csv":
-            if head.startswith(b"# pinlin gain:"):
-                return True
+            if head.startswith(GAIN_MARKER) or kind == "gain":   # a gain only for a gain
+                return head.startswith(GAIN_MARKER) and kind in (None, "gain")
             columns = head.split(b"\n", 1)[0].split(b",")
             return columns[0] == b"t" and len(columns) > 1 and all(b":" in c
                                                                    for c in columns[1:])
@@ -173,9 +178,9 @@ def check_replaceable(path: Path, target: Path, kind: str | None = None) -> None
     if start and not (any(start.startswith(h) for h in heads)
                       and _pinlin_content(target, path.suffix.lower(), kind)):
         where = f" (a link to '{target}')" if target != path else ""
-        other = next((k for k in _NPZ_MEMBERS if k != kind
+        other = next((k for k in _KINDS.get(path.suffix.lower(), ()) if k != kind
                       and _pinlin_content(target, path.suffix.lower(), k)), None) \
-            if kind is not None and path.suffix.lower() == ".npz" else None
+            if kind is not None else None
         if other is not None:   # pinlin's, of another kind: say which
             raise ModelFileError(path, f"exists{where} and holds a saved {_KIND_NAMES[other]}, "
                                        f"not a {_KIND_NAMES[kind]}; pinlin does not replace "

@@ -21,24 +21,26 @@ Two formats:
 
 from __future__ import annotations
 
+import csv
 import io
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 
-from .closed_loop import same_point
-from .exceptions import ModelFileError
-from .files import as_path, check_file_target, write_text_atomic
+from .closed_loop import gain_matrix, same_point
+from .exceptions import ArgumentError, ModelFileError
+from .files import GAIN_MARKER, as_path, check_file_target, write_text_atomic
 from .linear_model import LinearModel
 from .model_files import _NPY_HEADERS
-from .trajectory_files import _content_lines, _csv_fields, _file, csv_number, csv_text
+from .trajectory_files import _content_lines, _csv_fields, _file, csv_number, csv_text, text_lines
 
 GAIN_FORMATS = (".csv", ".npy")
 #: The header's first field.
 ROW_LABEL = "input"
 #: The first line of a gain file pinlin writes (what lets it replace its own file).
-MARKER = "# pinlin gain:"
+MARKER = GAIN_MARKER.decode()
 
 
 def read_gain(path: str | Path, model: LinearModel) -> np.ndarray:
@@ -51,6 +53,7 @@ def read_gain(path: str | Path, model: LinearModel) -> np.ndarray:
             is not a finite number (naming line and column).
     """
     path = as_path(path)
+    _check_model(model)
     raw = _file(path, GAIN_FORMATS, "gain")
     if path.suffix == ".npy":
         K = _read_npy(path, raw)
@@ -63,32 +66,41 @@ def read_gain(path: str | Path, model: LinearModel) -> np.ndarray:
     return _read_csv(path, raw, model)
 
 
-def write_gain(path: str | Path, K: np.ndarray, model: LinearModel) -> Path:
+def write_gain(path: str | Path, K: object, model: LinearModel) -> Path:
     """Write ``K`` (n_inputs x n_states of ``model``) as a named .csv gain file (17
-    significant digits: read back bit for bit). Never replaces a file pinlin did not write.
+    significant digits: read back bit for bit; names quoted where they hold a comma or a
+    quote). Replaces only a gain file pinlin wrote, never a time history or a user's file.
 
     Raises:
-        ModelFileError: not a .csv path, or K of the wrong shape or not finite.
+        ArgumentError: ``model`` is not a LinearModel, or ``K`` is not a finite real matrix of
+            its size (naming the entry).
+        ModelFileError: not a .csv path, or a file there that is not a gain pinlin wrote.
     """
     path = as_path(path)
+    _check_model(model)
     if path.suffix != ".csv":
         raise ModelFileError(path, "a gain file is written as .csv (names checked on "
                                    "reading); np.save writes the bare .npy form")
-    K = np.asarray(K, dtype=float)
-    if K.shape != (model.n_inputs, model.n_states) or not np.all(np.isfinite(K)):
-        raise ModelFileError(path, f"expected a finite {model.n_inputs} x {model.n_states} "
-                                   f"gain for model '{model.name}', got shape {K.shape}")
-    check_file_target(path)
-    lines = [f"{MARKER} u = -K x about the operating point of '{model.name}'"]
+    K = gain_matrix(K, model.n_inputs, [model.n_states], "K")
+    check_file_target(path, kind="gain")
     point = model.operating_point
+    out = io.StringIO()
+    out.write(f"{MARKER} u = -K x about the operating point of '{model.name}'\n")
     if point is not None:
-        lines += [f"# {key}0 = {','.join(repr(float(x)) for x in getattr(point, key))}"
-                  for key in ("q", "v")]
-    lines.append(",".join((ROW_LABEL, *model.state_names)))
-    lines += [",".join((name, *(repr(float(k)) for k in row)))
-              for name, row in zip(model.input_names, K, strict=True)]
-    write_text_atomic(path, "\n".join(lines) + "\n")
+        for key in ("q", "v"):
+            out.write(f"# {key}0 = {','.join(repr(float(x)) for x in getattr(point, key))}\n")
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow((ROW_LABEL, *model.state_names))
+    writer.writerows((name, *(repr(float(k)) for k in row))
+                     for name, row in zip(model.input_names, K, strict=True))
+    write_text_atomic(path, out.getvalue())
     return path
+
+
+def _check_model(model: object) -> None:
+    if not isinstance(model, LinearModel):
+        raise ArgumentError("model", f"expected the pinlin LinearModel the gain belongs to, "
+                                     f"got {type(model).__name__}")
 
 
 def _read_npy(path: Path, raw: bytes) -> np.ndarray:
@@ -107,9 +119,10 @@ def _read_npy(path: Path, raw: bytes) -> np.ndarray:
     if dtype.kind not in "fiu" or len(shape) != 2:
         raise ModelFileError(path, f"holds a {len(shape)}-D array of {dtype}; expected a 2-D "
                                    "array of numbers (inputs x states)")
-    if math.prod(shape) * dtype.itemsize > len(raw) - fh.tell():
-        raise ModelFileError(path, f"its header declares shape {shape} but the file is "
-                                   f"{len(raw)} bytes")
+    if math.prod(shape) * dtype.itemsize != len(raw) - fh.tell():
+        raise ModelFileError(path, f"its header declares shape {shape} ("
+                                   f"{math.prod(shape) * dtype.itemsize} bytes of data) but "
+                                   f"the file holds {len(raw) - fh.tell()} bytes after it")
     try:
         K = np.load(io.BytesIO(raw), allow_pickle=False).astype(float)
     except (ValueError, OSError, EOFError) as exc:
@@ -162,31 +175,44 @@ def _read_csv(path: Path, raw: bytes, model: LinearModel) -> np.ndarray:
     return K
 
 
+_POINT_LINE = re.compile(r"\s*#+\s*([qv]0)\s*[=:](.*)", re.IGNORECASE)
+
+
 def _check_point(path: Path, text: str, model: LinearModel) -> None:
     """The design point of the comment lines ``# q0 = ...`` and ``# v0 = ...`` (written by
     :func:`write_gain`; optional) against the model's operating point, as
     :func:`pinlin.simulate` checks a pair (K, model): a gain designed about the upright
-    pendulum is not applied to the hanging one."""
+    pendulum is not applied to the hanging one. A comment that reads like one (``## Q0: ...``)
+    is held to the same rule rather than skipped."""
     point = model.operating_point
-    for number, line in enumerate(text.splitlines(), start=1):
-        head, sep, values = line.partition("=")
-        key = head.strip().removeprefix("#").strip()
-        if not line.lstrip().startswith("#") or not sep or key not in ("q0", "v0") \
-                or point is None:
+    seen: dict[str, int] = {}
+    for number, line in enumerate(text_lines(text), start=1):
+        match = _POINT_LINE.fullmatch(line)
+        if match is None:
             continue
-        try:
-            there = np.array([float(x) for x in values.split(",")])
-        except ValueError:
-            raise ModelFileError(path, f"line {number}: the design point {key} must be "
-                                       f"numbers separated by commas, got {values.strip()!r:.40}"
-                                 ) from None
+        key, values = match.group(1).lower(), match.group(2)
+        if key in seen:
+            raise ModelFileError(path, f"line {number}: a second design point {key} (the first "
+                                       f"on line {seen[key]})")
+        seen[key] = number
+        there = np.array([csv_number(path, f"line {number}, design point {key}", cell)
+                          for cell in values.split(",")])
+        if point is None:
+            raise ModelFileError(path, f"line {number}: the gain names its design point "
+                                       f"{key}, and model '{model.name}' has no operating "
+                                       "point to check it against (delete the line to apply "
+                                       "the gain anyway)")
         here = getattr(point, key[0])
+        if there.shape != here.shape:
+            raise ModelFileError(path, f"line {number}: the design point {key} has "
+                                       f"{there.size} entries; model '{model.name}' has "
+                                       f"{here.size} (a gain for another robot or joint type)")
         if not same_point(there, here):
+            k = int(np.abs(there - here).argmax())
             raise ModelFileError(path, f"line {number}: the gain was designed about another "
-                                       f"point, {key} = {np.round(there, 6).tolist()!s:.60}; "
-                                       f"model '{model.name}' is linearized about "
-                                       f"{np.round(here, 6).tolist()!s:.60} (delete the line "
-                                       "to apply the gain there anyway)")
+                                       f"point: {key}[{k}] = {float(there[k])!r} in the file, "
+                                       f"{float(here[k])!r} for model '{model.name}' (delete "
+                                       "the line to apply the gain there anyway)")
 
 
 def _index(path: Path, line: int, names: list[str], expected: tuple[str, ...], what: str,

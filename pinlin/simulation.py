@@ -184,10 +184,19 @@ def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: 
         options: dict[str, Any] = {"rtol": rtol, "atol": atol}
         if h is not None:
             options["first_step"] = min(h, t_end - ts)
-        solver = solver_class(fun, ts, s, t_end, **options)
+        with np.errstate(over="ignore", invalid="ignore"):   # simulate refuses non-finite
+            solver = solver_class(fun, ts, s, t_end, **options)
         restart = None
         while solver.status == "running" and restart is None:
-            message = solver.step()
+            try:
+                with np.errstate(over="ignore", invalid="ignore"):
+                    message = solver.step()
+            except ValueError as exc:     # scipy's own check of its Jacobian or LU
+                if "infs or NaNs" not in str(exc):
+                    raise
+                raise ModelError(f"the integration failed at t = {solver.t:.6g} s ({method}): "
+                                 "the dynamics overflowed (inf or NaN in the solver's "
+                                 "Jacobian)") from None
             if solver.status == "failed":
                 raise ModelError(f"the integration failed at t = {solver.t:.6g} s ({method}): "
                                  f"{message}")
@@ -394,6 +403,10 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     else:
         stiffness, why = float("nan"), "given"
     Q, V, stats = _integrate(dyn, inputs, grid, s0, method, rtol, atol)
+    finite = np.isfinite(Q).all(axis=1) & np.isfinite(V).all(axis=1)
+    if not finite.all():
+        raise ModelError(f"the integration overflowed ({method}): the state is not finite "
+                         f"from t = {grid[int(np.argmin(finite))]:.6g} s")
 
     X = np.hstack([np.array([pin.difference(system.model, op.q, q) for q in Q]), V - op.v])
     Z = np.hstack([X[:, cols], X[:, nv + cols]])

@@ -31,6 +31,7 @@ import difflib
 import io
 import json
 import math
+import re
 import zipfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -141,9 +142,19 @@ def _read_npz_states(path: Path, raw: bytes
 _SHAPES = {"q": "(N, nq)", "v": "(N, nv)", "u": "(N, nu)", "t": "(N,)"}
 
 
+def text_lines(text: str) -> list[str]:
+    """The lines of a text file as its writer meant them: split at \\n, \\r\\n and \\r only
+    (``str.splitlines`` also splits at form feeds, NEL and U+2028, which a comment may hold:
+    its tail was then read as a header or as data)."""
+    return _LINE_BREAK.split(text.removesuffix("\n").removesuffix("\r")) if text else []
+
+
+_LINE_BREAK = re.compile(r"\r\n|\r|\n")
+
+
 def _content_lines(text: str) -> list[tuple[int, str]]:
     """(line number, line) of a CSV text's lines that are neither blank nor comments."""
-    return [(i, line) for i, line in enumerate(text.splitlines(), start=1)
+    return [(i, line) for i, line in enumerate(text_lines(text), start=1)
             if line.strip() and not line.lstrip().startswith("#")]
 
 

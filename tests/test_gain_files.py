@@ -6,6 +6,7 @@ expm((A - B K) t) x0 (scipy), and gains permuted by hand."""
 from __future__ import annotations
 
 import pickle
+import warnings
 
 import numpy as np
 import pytest
@@ -88,9 +89,22 @@ BAD_CSV = {
             "'nan' is not a finite number"),
     "empty": ("# nothing\n", "empty"),
     "other_point": ("# q0 = 0.5,0\ninput,q:shoulder,q:elbow,v:shoulder,v:elbow\n",
-                    "line 1: the gain was designed about another point, q0 = \\[0.5, 0.0\\]"),
+                    "line 1: the gain was designed about another point: q0\\[0\\] = 0.5 in "
+                    "the file, 0.0 for model"),
+    "point_near_pi": ("# q0 = 3.141592657589793,0\ninput,q:shoulder,q:elbow,v:shoulder,"
+                      "v:elbow\n", "q0\\[0\\] = 3.141592657589793 in the file, 0.0"),
     "bad_point": ("# v0 = fast\ninput,q:shoulder,q:elbow,v:shoulder,v:elbow\n",
-                  "line 1: the design point v0 must be numbers"),
+                  "line 1, design point v0: 'fast' is not a number"),
+    "nan_point": ("# v0 = nan,0\ninput,q:shoulder,q:elbow,v:shoulder,v:elbow\n",
+                  "line 1, design point v0: 'nan' is not a finite number"),
+    "point_size": ("# q0 = 0,0,0\ninput,q:shoulder,q:elbow,v:shoulder,v:elbow\n",
+                   "the design point q0 has 3 entries; model 'double_pendulum' has 2"),
+    "point_spelled_otherwise": ("## Q0: 1,1\ninput,q:shoulder,q:elbow,v:shoulder,v:elbow\n",
+                                "designed about another point"),
+    "point_twice": ("# q0 = 0,0\n# q0 = 0,0\ninput,q:shoulder,q:elbow,v:shoulder,v:elbow\n",
+                    "line 2: a second design point q0"),
+    "form_feed_in_a_comment": ("# a\x0cq0 = 1,1\ninput,q:shoulder,q:elbow,v:shoulder,v:elbow"
+                               "\nu:elbow,1,2,3,4\n", "no line for input u:shoulder"),
 }
 
 
@@ -117,6 +131,9 @@ def test_bad_npy_gains_are_refused(tmp_path):
     (tmp_path / "cut.npy").write_bytes(raw[:-40])
     with pytest.raises(pinlin.ModelFileError, match="header declares shape"):
         pinlin.read_gain(tmp_path / "cut.npy", model)
+    (tmp_path / "long.npy").write_bytes(raw + bytes(64))     # more data than declared
+    with pytest.raises(pinlin.ModelFileError, match="header declares shape"):
+        pinlin.read_gain(tmp_path / "long.npy", model)
     (tmp_path / "K.pkl").write_bytes(pickle.dumps(np.zeros((2, 4))))
     with pytest.raises(pinlin.ModelFileError, match="unknown gain format"):
         pinlin.read_gain(tmp_path / "K.pkl", model)
@@ -131,9 +148,60 @@ def test_write_gain_keeps_what_the_user_has(tmp_path):
     with pytest.raises(pinlin.ModelFileError, match="pinlin does not replace it"):
         pinlin.write_gain(mine, np.zeros((2, 4)), model)
     assert mine.read_text() == "my notes\n"
-    with pytest.raises(pinlin.ModelFileError, match="finite 2 x 4 gain"):
+    with pytest.raises(pinlin.ArgumentError, match="argument 'K': expected a gain matrix of "
+                                                  "shape \\(2, 4\\)"):
         pinlin.write_gain(tmp_path / "new.csv", np.zeros((2, 3)), model)
     assert not (tmp_path / "new.csv").exists()
+    # A states file of the user's (t, q:..., u:...) and a time history are not gains.
+    states = tmp_path / "states.csv"
+    states.write_text("t,q:shoulder,q:elbow,v:shoulder,v:elbow,u:shoulder,u:elbow\n"
+                      "0,0,0,0,0,0,0\n")
+    with pytest.raises(pinlin.ModelFileError, match="pinlin does not replace"):
+        pinlin.write_gain(states, np.zeros((2, 4)), model)
+    assert states.read_text().startswith("t,q:shoulder")
+
+
+@pytest.mark.parametrize("bad, match", [
+    ("abc", "argument 'K'"), ([[1, 2, 3, 4], [1, 2]], "argument 'K'"), ({"a": 1}, "argument 'K'"),
+    (np.ones((2, 4)) * (1 + 2j), "argument 'K'"), (np.full((2, 4), np.inf), "NaN or inf")])
+def test_write_gain_refuses_what_is_not_a_real_gain(tmp_path, bad, match):
+    model = pinlin.linearize("double_pendulum")
+    with pytest.raises(pinlin.ArgumentError, match=match):
+        pinlin.write_gain(tmp_path / "K.csv", bad, model)
+    assert not (tmp_path / "K.csv").exists()
+
+
+def test_gain_functions_want_a_model(tmp_path):
+    for call in (lambda: pinlin.read_gain(tmp_path / "K.csv", "double_pendulum"),
+                 lambda: pinlin.write_gain(tmp_path / "K.csv", np.zeros((2, 4)),
+                                           "double_pendulum")):
+        with pytest.raises(pinlin.ArgumentError, match="argument 'model'"):
+            call()
+
+
+def test_names_with_commas_are_quoted_and_read_back(tmp_path):
+    """A joint named 'hin,ge' (URDF allows it): the header and the input line quote it."""
+    text = (URDF_DIR / "pendulum.urdf").read_text().replace('name="hinge"', 'name="hin,ge"')
+    (tmp_path / "comma.urdf").write_text(text)
+    model = pinlin.linearize(pinlin.Scene.from_urdf(
+        tmp_path / "comma.urdf", effects={"gravity": [0, 0, -9.81]},
+        operating_point={"solve": "inputs"}, inputs={"actuated": ["hin,ge"]}))
+    K = np.array([[3.0, 0.5]])
+    path = pinlin.write_gain(tmp_path / "K.csv", K, model)
+    assert '"q:hin,ge"' in path.read_text()
+    np.testing.assert_array_equal(pinlin.read_gain(path, model), K)
+
+
+def test_a_design_point_needs_a_model_with_one(tmp_path):
+    model = pinlin.linearize("double_pendulum")
+    bare = pinlin.LinearModel(model.A, model.B, model.C, model.D,
+                              state_names=model.state_names, input_names=model.input_names,
+                              output_names=model.output_names, name="bare")
+    path = pinlin.write_gain(tmp_path / "K.csv", np.ones((2, 4)), model)
+    with pytest.raises(pinlin.ModelFileError, match="has no operating point to check it"):
+        pinlin.read_gain(path, bare)
+    pinlin.write_gain(tmp_path / "bare.csv", np.ones((2, 4)), bare)     # no point to record
+    np.testing.assert_array_equal(pinlin.read_gain(tmp_path / "bare.csv", bare), np.ones((2, 4)))
 
 
 def test_cli_simulate_closes_the_loop_as_by_hand(capfd, tmp_path):
@@ -205,6 +273,7 @@ def test_cli_feedback_refusals_are_one_line(capfd, tmp_path):
     scene = _upright(tmp_path)
     model = pinlin.linearize(scene)
     pinlin.write_gain(tmp_path / "K.csv", np.array([[20.0, 7.0]]), model)
+    (tmp_path / "huge.csv").write_text("input,q:hinge,v:hinge\nu:hinge,1e300,1e300\n")
     for argv, words in (
             (["simulate", "pendulum", "--t-end", "1", "--feedback", tmp_path / "K.csv"],
              "designed about another point"),
@@ -212,7 +281,26 @@ def test_cli_feedback_refusals_are_one_line(capfd, tmp_path):
               tmp_path / "K.csv"], "'q:hinge' is not a state of model 'double_pendulum'"),
             (["response", scene, "--t-end", "1", "--feedback", tmp_path / "none.npy"],
              "file not found"),
-            (["validity", scene, "--feedback", tmp_path / "none.csv"], "file not found")):
+            (["validity", scene, "--feedback", tmp_path / "none.csv"], "file not found"),
+            (["simulate", scene, "--t-end", "1", "--feedback", tmp_path / "K.csv", "--out",
+              tmp_path / "K.csv"], "holds a saved gain, not a time history"),
+            (["simulate", scene, "--t-end", "1", "--feedback", tmp_path / "huge.csv"],
+             "entries beyond 1e+150")):
         code, out, err = _run(capfd, *argv)
         assert code == 2 and err.count("\n") == 1 and words in err, err
         assert out == ""
+    assert (tmp_path / "K.csv").read_text().startswith("# pinlin gain:")   # not replaced
+
+
+def test_a_gain_that_overflows_the_integration_is_refused_in_one_line(tmp_path):
+    """1e149 on the velocity (below the 1e150 entry limit): the stiff solver's Jacobian
+    overflowed and scipy's own check left a traceback; now a ModelError, and no numpy
+    warning on the way. From 1e150 the gain itself is refused."""
+    scene = pinlin.Scene.load(_upright(tmp_path))
+    t = np.linspace(0.0, 1.0, 5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(pinlin.ModelError, match="the dynamics overflowed"):
+            pinlin.simulate(scene, t, dx0=[0.1, 0.0], feedback=np.array([[0.0, 1e149]]))
+    with pytest.raises(pinlin.ArgumentError, match="entries beyond 1e\\+150"):
+        pinlin.simulate(scene, t, dx0=[0.1, 0.0], feedback=np.array([[0.0, 1e151]]))

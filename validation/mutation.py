@@ -256,8 +256,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'modal response: Jordan/Schur blocks hold the next sample instead of the current one'),
     'exact_warning_on_shortest_step': (
         'pinlin/response.py',
-        'warn_if_inaccurate(model.name, float(np.diff(t).max()), std.A,',
-        'warn_if_inaccurate(model.name, float(np.diff(t).min()), std.A,',
+        '            model.name, float(np.diff(t).max()), std.A,',
+        '            model.name, float(np.diff(t).min()), std.A,',
         'exact response checks the rounding of its shortest step, not its longest'),
     'stiff_criterion_or': (
         'pinlin/simulation.py',
@@ -375,6 +375,32 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '"C_damp": model.C_damp + model.Bu @ Kv,',
         '"C_damp": model.C_damp + model.Bu @ Kq,',
         "the closed loop's damping takes the position gains"),
+    'exact_check_skipped_after_step_warning': (
+        'pinlin/response.py',
+        '        if len(t) > 1:\n            said = ',
+        '        if len(t) > 1 and not warned:\n            said = ',
+        "the exact response's rounding check is skipped where the long-step warning fired"),
+    'exact_check_one_sample_unscaled': (
+        'pinlin/response.py', 'ROUNDING_SAMPLES = 2\nROUNDING_FACTOR = 10.0',
+        'ROUNDING_SAMPLES = 1\nROUNDING_FACTOR = 1.0',
+        "the exact response's error estimate: one perturbed march, no safety factor"),
+    'gain_columns_in_file_order': (
+        'pinlin/gain_files.py', 'K[row, column[k]] = csv_number(',
+        'K[row, k] = csv_number(',
+        "a gain file's columns taken in the file's order, not put in the model's"),
+    'gain_design_point_unchecked': (
+        'pinlin/gain_files.py', '        if not same_point(there, here):',
+        '        if False:',
+        "a gain file's design point is read but not compared with the model's"),
+    'gain_replaces_any_csv': (
+        'pinlin/files.py',
+        'return head.startswith(GAIN_MARKER) and kind in (None, "gain")',
+        'return True',
+        "a gain file may replace a time history or a user's CSV, and be replaced by them"),
+    'cli_response_feedback_sign': (
+        'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
+        '        model = model.closed_loop(-gain[0])',
+        "pinlin response --feedback closes the loop with the gain's sign flipped"),
 }
 
 
