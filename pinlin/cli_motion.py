@@ -6,20 +6,25 @@
 from __future__ import annotations
 
 import argparse
-import io
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from .cli_format import check_out, file_name, folder_name, mode_rows, options_named, plural
+from .cli_histories import (
+    assignments,
+    check_history_out,
+    check_plot,
+    initial_state,
+    number,
+    times,
+    write_results,
+)
 from .exceptions import ArgumentError, ModelFileError
-from .files import all_or_nothing
 
 #: The trajectory progress bar appears once a run has taken this long [s].
 PROGRESS_AFTER = 1.0
-#: Formats of the time histories ``simulate`` and ``response`` write.
-HISTORY_FORMATS = (".csv", ".npz")
 
 
 class _PointsBar:
@@ -193,149 +198,6 @@ def _other_spacing(t: np.ndarray | None, dt: float) -> str:
             "from one point to the next)")
 
 
-def _times(args: argparse.Namespace) -> np.ndarray:
-    """The time grid 0, dt, 2 dt, ..., t_end [s] of --t-end and --dt (t_end itself last, also
-    where --dt does not divide it)."""
-    if not (np.isfinite(args.t_end) and args.t_end > 0):
-        raise ArgumentError("--t-end", f"expected a duration > 0 [s], got {args.t_end:g}")
-    if not (np.isfinite(args.dt) and 0 < args.dt <= args.t_end):
-        raise ArgumentError("--dt", f"expected an output step in (0, --t-end] [s], got "
-                                    f"{args.dt:g}")
-    count = np.floor(args.t_end / args.dt + 1e-9) + 1.0
-    if not count <= 1_000_000:  # a float: --t-end 1e300 / --dt 0.01 overflows no int
-        raise ArgumentError("--dt", f"--t-end / --dt gives {count:.3g} output times; at most "
-                                    "1000000 (raise --dt or shorten --t-end)")
-    grid = np.arange(int(count)) * args.dt
-    if args.t_end - grid[-1] > 1e-9 * args.dt:
-        grid = np.append(grid, args.t_end)
-    return grid
-
-
-def _assignments(values: list[str] | None, names: tuple[str, ...], option: str,
-                 prefix: str) -> dict[str, str]:
-    """NAME=VALUE pairs, each NAME one of ``names`` (``prefix`` may be left out)."""
-    out: dict[str, str] = {}
-    for item in values or []:
-        name, sep, value = item.partition("=")
-        name = name.strip()
-        if not sep or not name or not value.strip():
-            raise ArgumentError(option, f"expected NAME=VALUE, got {item!r}")
-        if name not in names and f"{prefix}{name}" in names:
-            name = f"{prefix}{name}"
-        if name not in names:
-            shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
-            raise ArgumentError(option, f"{name!r} is not one of {shown}")
-        if name in out:
-            raise ArgumentError(option, f"{name!r} is given twice ({out[name]} and "
-                                        f"{value.strip()}); give each name once")
-        out[name] = value.strip()
-    return out
-
-
-def _float(text: str, option: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ArgumentError(option, f"expected a number, got {text!r}") from None
-    if not np.isfinite(value):
-        raise ArgumentError(option, f"expected a finite number, got {text!r}")
-    return value
-
-
-def _initial(model, values: list[str] | None) -> np.ndarray | None:
-    """--x0 NAME=VALUE pairs as a state deviation (the model's state names)."""
-    given = _assignments(values, model.state_names, "--x0", "q:")
-    if not given:
-        return None
-    x0 = np.zeros(len(model.state_names))
-    for name, value in given.items():
-        x0[model.state_names.index(name)] = _float(value, "--x0")
-    return x0
-
-
-def _check_history_out(path: str | None, option: str = "--out") -> Path | None:
-    from .files import check_file_target
-
-    if path is None:
-        return None
-    out = Path(path)
-    if out.suffix not in HISTORY_FORMATS:
-        raise ModelFileError(out, f"unknown format '{out.suffix}' for time histories; "
-                                  f"expected {' or '.join(HISTORY_FORMATS)}")
-    check_file_target(out, kind="history")
-    return out
-
-
-def _check_plot(path: str | None) -> Path | None:
-    from .files import check_file_target
-
-    if path is None:
-        return None
-    out = Path(path)
-    if out.suffix != ".png":
-        raise ModelFileError(out, "expected a .png file for the plot")
-    check_file_target(out)
-    return out
-
-
-def _write_history(path: Path, t: np.ndarray, columns: dict[str, np.ndarray]) -> None:
-    """t and named columns as CSV (a header row) or NPZ (arrays t, names, values)."""
-    from .files import write_bytes_atomic, write_text_atomic
-
-    names = list(columns)
-    values = np.column_stack([t] + [columns[n] for n in names])
-    if path.suffix == ".csv":
-        lines = [",".join(["t", *names])]
-        lines += [",".join(f"{x:.17g}" for x in row) for row in values]
-        write_text_atomic(path, "\n".join(lines) + "\n")
-    else:
-        buf = io.BytesIO()
-        np.savez(buf, t=t, names=np.array(names, dtype=str), values=values[:, 1:])
-        write_bytes_atomic(path, buf.getvalue())
-
-
-def _plot_histories(path: Path, title: str, t: np.ndarray,
-                    curves: list[tuple[str, np.ndarray, np.ndarray, str]]) -> None:
-    """One panel per state group (positions, velocities): curves (label, t, y, style)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .files import PNG_METADATA, write_bytes_atomic
-
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for label, tc, y, style in curves[:24]:
-        ax.plot(tc, y, style, label=label, linewidth=1.0)
-    ax.set_xlabel("t [s]")
-    ax.set_title(title, fontsize=9)
-    ax.grid(alpha=0.3)
-    if len(curves) <= 12:
-        ax.legend(fontsize=7, ncol=2)
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=90, metadata=PNG_METADATA)
-    plt.close(fig)
-    write_bytes_atomic(path, buf.getvalue())
-
-
-def _write_results(out: Path | None, plot: Path | None, t: np.ndarray,
-                   columns: dict[str, np.ndarray], title: str,
-                   curves: list[tuple[str, np.ndarray, np.ndarray, str]]) -> list[str]:
-    """The time histories (``--out``) and their plot (``--plot``), both or neither
-    (:func:`pinlin.files.all_or_nothing`), before anything is printed: a failed write prints
-    one line, not the result. The lines that say what was written."""
-    written = []
-    with all_or_nothing():
-        if out is not None:
-            _write_history(out, t, columns)
-            written.append(f"time histories written to {out}")
-        if plot is not None:
-            _plot_histories(plot, title, t, curves)
-            written.append(f"plot written to {plot}")
-    return written
-
-
 def _gain(path: str | None, model) -> tuple[np.ndarray, object] | None:
     """--feedback FILE as the pair (K, model) that simulate and validity check against the
     model's states (None without the option)."""
@@ -357,11 +219,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from .scene import Scene
     from .simulation import simulate
 
-    t = _times(args)
-    out, plot = _check_history_out(args.out), _check_plot(args.plot)
+    t = times(args)
+    out, plot = check_history_out(args.out), check_plot(args.plot)
     scene = Scene.resolve(args.target)
     model = linearize(scene)
-    x0 = _initial(model, args.x0)
+    x0 = initial_state(model, args.x0)
     gain = _gain(args.feedback, model)
     with options_named({"dx0": "--x0", "rtol": "--rtol", "atol": "--atol",
                          "method": "--method", "feedback": "--feedback"}):
@@ -387,7 +249,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     columns.update({f"y:{name}": sim.y[:, k] for k, name in enumerate(sim.output_names)})
     if gain is not None:     # the inputs the loop applied
         columns.update({name: sim.u[:, k] for k, name in enumerate(sim.input_names)})
-    lines += _write_results(out, plot, sim.t, columns, f"{scene.name}: nonlinear simulation"
+    lines += write_results(out, plot, sim.t, columns, f"{scene.name}: nonlinear simulation"
                             + (" in closed loop" if gain is not None else ""),
                             [(name, sim.t, sim.z[:, k], "-")
                              for k, name in enumerate(sim.independent_names[:n])])
@@ -401,9 +263,9 @@ def _signals(args: argparse.Namespace, model):
 
     total = None
     for option, make in (("--step", step), ("--impulse", impulse)):
-        given = _assignments(getattr(args, option[2:]), model.input_names, option, "u:")
+        given = assignments(getattr(args, option[2:]), model.input_names, option, "u:")
         if given:
-            sig = make({k: _float(v, option) for k, v in given.items()})
+            sig = make({k: number(v, option) for k, v in given.items()})
             total = sig if total is None else total + sig
     for item in args.harmonic or []:
         name, sep, rest = item.partition("=")
@@ -411,9 +273,9 @@ def _signals(args: argparse.Namespace, model):
         if not sep or not at:
             raise ArgumentError("--harmonic", f"expected u:NAME=AMPLITUDE@W (W [rad/s]), got "
                                               f"{item!r}")
-        key = next(iter(_assignments([f"{name}={amp}"], model.input_names, "--harmonic",
+        key = next(iter(assignments([f"{name}={amp}"], model.input_names, "--harmonic",
                                      "u:")))
-        sig = harmonic({key: _float(amp, "--harmonic")}, _float(freq, "--harmonic"))
+        sig = harmonic({key: number(amp, "--harmonic")}, number(freq, "--harmonic"))
         total = sig if total is None else total + sig
     return total
 
@@ -423,14 +285,14 @@ def _cmd_response(args: argparse.Namespace) -> int:
     from .response import response
     from .scene import Scene
 
-    t = _times(args)
+    t = times(args)
     if args.nonlinear and (args.step or args.impulse or args.harmonic):
         raise ArgumentError("--nonlinear", "compares free responses (--x0 only); inputs "
                                            "are not simulated nonlinearly from the CLI")
-    out, plot = _check_history_out(args.out), _check_plot(args.plot)
+    out, plot = check_history_out(args.out), check_plot(args.plot)
     scene = Scene.resolve(args.target)
     model = linearize(scene)
-    x0 = _initial(model, args.x0)
+    x0 = initial_state(model, args.x0)
     u = _signals(args, model)
     gain = _gain(args.feedback, model)
     open_loop = model
@@ -465,7 +327,7 @@ def _cmd_response(args: argparse.Namespace) -> int:
                    for k, name in enumerate(sim.independent_names[:n])]
         columns.update({f"nl:{name}": sim.z[:, k]
                         for k, name in enumerate(sim.independent_names)})
-    lines += _write_results(out, plot, res.t, columns, f"{model.name}: linear response"
+    lines += write_results(out, plot, res.t, columns, f"{model.name}: linear response"
                             + (" and nonlinear simulation" if args.nonlinear else ""), curves)
     print("\n".join(lines))
     return 0

@@ -222,13 +222,13 @@ def test_a_failed_write_prints_nothing_but_the_error(argv, capfd, tmp_path, monk
 def test_two_outputs_appear_together_or_not_at_all(capfd, tmp_path, monkeypatch):
     """--out and --plot: when the plot cannot be written, the history is not kept either
     (it was left behind, the command exiting 2), and no temporary file remains."""
-    from pinlin import cli_motion
+    from pinlin import cli_histories
     from pinlin.exceptions import ModelFileError
 
     def full(path, title, t, curves):
         raise ModelFileError(path, "cannot write: No space left on device")
 
-    monkeypatch.setattr(cli_motion, "_plot_histories", full)
+    monkeypatch.setattr(cli_histories, "plot_histories", full)
     code, out, err = run(capfd, "response", "pendulum", "--t-end", "0.1", "--x0", "hinge=0.1",
                          "--out", str(tmp_path / "r.csv"), "--plot", str(tmp_path / "r.png"))
     assert code == 2 and out == "" and "No space left" in err
