@@ -47,10 +47,11 @@ def read_gain(path: str | Path, model: LinearModel) -> np.ndarray:
     """The gain K (n_inputs x n_states, in ``model``'s orders) of a gain file.
 
     Raises:
-        ArgumentError: ``path`` is not a path.
+        ArgumentError: ``path`` is not a path, or ``model`` not a LinearModel.
         ModelFileError: missing file, another suffix, a pickled or corrupt .npy, a wrong
             shape, names that are not the model's (naming the line and the name), text that
-            is not a finite number (naming line and column).
+            is not a finite number (naming line and column), a design point that is not the
+            model's.
     """
     path = as_path(path)
     _check_model(model)
