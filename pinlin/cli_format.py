@@ -86,7 +86,7 @@ def check_out(path: Path, formats: Sequence[str], kind: str = "model") -> None:
         names = list(formats)
         listed = ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else names[0]
         raise ModelFileError(path, f"unknown {kind} format '{path.suffix}'; expected {listed}")
-    check_file_target(path)
+    check_file_target(path, kind="model")     # both callers write a (trajectory) model
     parent = path.parent if str(path.parent) else Path(".")
     if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise ModelFileError(path, "cannot write: permission denied")

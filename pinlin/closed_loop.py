@@ -62,7 +62,9 @@ def gain_matrix(K: object, n_inputs: int, widths: Sequence[int], name: str = "K"
     if gain.ndim != 2 or gain.shape[0] != n_inputs or gain.shape[1] not in widths:
         raise ArgumentError(name, f"expected {what}, got shape {given}")
     if not np.all(np.isfinite(gain)):
-        raise ArgumentError(name, "the gain matrix contains NaN or inf")
+        where = [int(i) for i in np.argwhere(~np.isfinite(gain))[0]]
+        raise ArgumentError(name, f"the gain matrix contains NaN or inf (the first at "
+                                  f"{where}: {gain[tuple(where)]})")
     largest = float(np.abs(gain).max(initial=0.0))
     if largest > GAIN_LIMIT:
         raise ArgumentError(name, f"the gain matrix has entries beyond {GAIN_LIMIT:g} "

@@ -74,7 +74,7 @@ def write_gain(path: str | Path, K: object, model: LinearModel) -> Path:
 
     Raises:
         ArgumentError: ``model`` is not a LinearModel, or ``K`` is not a finite real matrix of
-            its size (naming the entry).
+            its size (naming the first entry that is not finite).
         ModelFileError: not a .csv path, or a file there that is not a gain pinlin wrote.
     """
     path = as_path(path)
@@ -96,6 +96,12 @@ def write_gain(path: str | Path, K: object, model: LinearModel) -> Path:
                      for name, row in zip(model.input_names, K, strict=True))
     write_text_atomic(path, out.getvalue())
     return path
+
+
+def _named(field: str, names: tuple[str, ...]) -> str:
+    """A CSV field naming a state or an input: as written where that is a name (a URDF
+    name may end in a space), else without the spaces around it."""
+    return field if field in names else field.strip()
 
 
 def _check_model(model: object) -> None:
@@ -140,8 +146,9 @@ def _read_csv(path: Path, raw: bytes, model: LinearModel) -> np.ndarray:
     if not lines:
         raise ModelFileError(path, f"empty: expected a header '{ROW_LABEL},<state>,...' "
                                    "naming the model's states, then one line per input")
-    head_line, header = lines[0][0], [c.strip() for c in _csv_fields(path, *lines[0])]
     states, inputs = model.state_names, model.input_names
+    head_line = lines[0][0]
+    header = [_named(c, states) for c in _csv_fields(path, *lines[0])]
     if header[0] != ROW_LABEL:
         raise ModelFileError(path, f"line {head_line}: the header starts with "
                                    f"{header[0]!r:.40}; expected '{ROW_LABEL}' (the column of "
@@ -152,7 +159,8 @@ def _read_csv(path: Path, raw: bytes, model: LinearModel) -> np.ndarray:
     K = np.full((len(inputs), len(states)), np.nan)
     seen: dict[str, int] = {}
     for number, line in lines[1:]:
-        fields = [c.strip() for c in _csv_fields(path, number, line)]
+        fields = _csv_fields(path, number, line)
+        fields[0] = _named(fields[0], inputs)
         if len(fields) != len(header):
             raise ModelFileError(path, f"line {number}: {len(fields)} values, the header "
                                        f"names {len(header)} columns")

@@ -263,11 +263,12 @@ def _check_rounding(name: str, std: LinearModel, f0: np.ndarray, c: np.ndarray, 
                            held, xs0).real
             spread = max(spread, float(np.abs(again - xs).max()) / scale)   # NaN: stays
     error = ROUNDING_FACTOR * spread if np.isfinite(spread) else math.inf
-    if error <= max(WARN_ZOH_ERROR, 10.0 * said):
+    if error < 1.0 and error <= max(WARN_ZOH_ERROR, 10.0 * said):
         return
     what = (f"moving each entry of A, B and f0 by 2 eps of itself changes it by {spread:.1e} "
-            f"of its largest value, an error of up to {error:.1e} (A is far from normal, "
-            f"||A||_1 = {np.abs(std.A).sum(axis=0).max():.2e})")
+            f"of its largest value, an error of up to {error:.1e} (||A||_1 = "
+            f"{np.abs(std.A).sum(axis=0).max():.2e} 1/s, the longest step "
+            f"{float(np.diff(t).max()):g} s)")
     if error >= 1.0:
         raise ModelError(f"model '{name}': the exact response is lost to rounding: {what}; no "
                          "correct digit can be relied on; use method='modal'")

@@ -281,3 +281,24 @@ def test_nonlinear_response_names_the_option_and_unknown_names_are_listed_once(c
     assert code == 2 and "argument '--x0'" in err and "dx0" not in err
     code, out, err = run(capfd, "simulate", "nopendulum", "--t-end", "1")
     assert code == 2 and err.count("'double_pendulum'") == 1, err
+
+
+def test_trajectory_out_over_a_time_history_is_refused_before_the_work(capfd, tmp_path,
+                                                                        monkeypatch):
+    """`pinlin trajectory ... --out h.npz` where h.npz is a time history pinlin wrote: refused
+    (as the final save would refuse it) before any point is linearized."""
+    history = tmp_path / "h.npz"
+    code, _, err = run(capfd, "simulate", "pendulum", "--t-end", "0.1", "--out", str(history))
+    assert code == 0, err
+    states = tmp_path / "states.npz"
+    np.savez(states, q=np.zeros((3, 1)), v=np.zeros((3, 1)), u=np.zeros((3, 1)))
+
+    def never(*args, **kwargs):
+        raise AssertionError("the trajectory was linearized before the refusal")
+
+    from pinlin import trajectory
+    monkeypatch.setattr(trajectory, "linearize_trajectory", never)
+    before = history.read_bytes()
+    code, out, err = run(capfd, "trajectory", "pendulum", str(states), "--out", str(history))
+    assert code == 2 and "holds a saved time history, not a model" in err, err
+    assert history.read_bytes() == before

@@ -304,3 +304,22 @@ def test_a_gain_that_overflows_the_integration_is_refused_in_one_line(tmp_path):
             pinlin.simulate(scene, t, dx0=[0.1, 0.0], feedback=np.array([[0.0, 1e149]]))
     with pytest.raises(pinlin.ArgumentError, match="entries beyond 1e\\+150"):
         pinlin.simulate(scene, t, dx0=[0.1, 0.0], feedback=np.array([[0.0, 1e151]]))
+
+
+def test_a_name_ending_in_a_space_round_trips(tmp_path):
+    text = (URDF_DIR / "pendulum.urdf").read_text().replace('name="hinge"', 'name="hinge "')
+    (tmp_path / "space.urdf").write_text(text)
+    model = pinlin.linearize(pinlin.Scene.from_urdf(
+        tmp_path / "space.urdf", effects={"gravity": [0, 0, -9.81]},
+        operating_point={"solve": "inputs"}, inputs={"actuated": ["hinge "]}))
+    K = np.array([[3.0, 0.5]])
+    path = pinlin.write_gain(tmp_path / "K.csv", K, model)
+    np.testing.assert_array_equal(pinlin.read_gain(path, model), K)
+
+
+def test_a_non_finite_gain_names_its_entry(tmp_path):
+    model = pinlin.linearize("double_pendulum")
+    K = np.ones((2, 4))
+    K[1, 2] = np.inf
+    with pytest.raises(pinlin.ArgumentError, match=r"NaN or inf \(the first at \[1, 2\]: inf\)"):
+        pinlin.write_gain(tmp_path / "K.csv", K, model)

@@ -873,3 +873,19 @@ def test_the_rounding_checks_error_bounds_the_60_digit_error_of_random_loops():
         assert error <= 3.0 * max(said or [1e-6]), (trial, error, said)
         checked += 1
     assert checked >= 12
+
+
+def test_a_step_warned_as_long_is_refused_where_the_check_finds_no_digit():
+    """The undamped pendulum in one step of 3.7e14 s: eps ||A||_1 h = 0.8 warns ("may reach
+    8.0e-01") and the exponential's x(T) came back -3361 rad for a true 1.5e-4, because the
+    check let anything up to 10x the warning through. Where its own estimate reaches 1 it
+    now refuses, warning or not. The true x(T) is 1e-3 cos(w T), |x(T)| <= 1e-3: the plain
+    exponential's |x| beyond that has no digit left."""
+    model = _model("pendulum")
+    T = 0.8 / (EPS * np.abs(model.A).sum(axis=0).max())
+    plain = sla.expm(model.A * T) @ np.array([1e-3, 0.0])
+    assert abs(plain[0]) > 1e-3                  # what the march computes: not a cosine
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+        with pytest.raises(pinlin.ModelError, match="lost to rounding"):
+            pinlin.response(model, [0.0, T], [1e-3, 0.0], method="exact")
