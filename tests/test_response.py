@@ -719,9 +719,11 @@ def test_a_discrete_impulse_is_one_sample_of_height_area_over_dt():
 
 
 def test_the_exact_march_judges_its_longest_step_not_its_shortest():
-    """Uneven times: a step of 1e15 s after one of 1 s leaves no digit (eps |A| dt >= 1)."""
+    """Uneven times: a step of 1e15 s after one of 1 s leaves no digit (eps |A| dt >= 1),
+    refused before the march, naming that step h (the rounding check after the march would
+    refuse too, but only once the 1e15 s exponential has been computed)."""
     model = _dp_model()
-    with pytest.raises(pinlin.ModelError, match="no correct digit"):
+    with pytest.raises(pinlin.ModelError, match="h = 1e\\+15 s.*no correct digit"):
         pinlin.response(model, [0.0, 1.0, 1e15], [0.01, 0.0, 0.0, 0.0], method="exact")
 
 
