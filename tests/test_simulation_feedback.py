@@ -6,15 +6,12 @@ loop adds (which the open loop does not have)."""
 
 from __future__ import annotations
 
-import contextlib
-import signal
-
 import numpy as np
 import pinocchio as pin
 import pytest
 import scipy.integrate
 import scipy.linalg as sla
-from conftest import URDF_DIR
+from conftest import URDF_DIR, deadline
 from scipy.signal import place_poles
 
 import pinlin
@@ -29,25 +26,6 @@ MGL = 1.0 * G * 1.0   # [N*m]: m g l
 def _pendulum() -> pinlin.Scene:
     return pinlin.Scene.from_urdf(URDF_DIR / "pendulum.urdf",
                                   effects={"gravity": [0.0, 0.0, -G]})
-
-
-@contextlib.contextmanager
-def _deadline(seconds: int):
-    """Fail (TimeoutError) instead of hanging past ``seconds`` (SIGALRM; POSIX only)."""
-    if not hasattr(signal, "SIGALRM"):
-        yield
-        return
-
-    def expire(*_):
-        raise TimeoutError(f"still running after {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
 
 
 def _remainder(scene, t, direction, K, closed, amplitudes, states):
@@ -258,7 +236,7 @@ def test_a_very_high_gain_about_a_far_point_is_resolved():
     scene = _pendulum()
     K = np.array([[1e12, 2e6]])
     t = np.array([0.0, 1e-6, 2e-6, 5e-6, 1e-5, 1e-2])
-    with _deadline(120):   # the stall ran for hours: fail instead
+    with deadline(120):   # the stall ran for hours: fail instead
         sim = pinlin.simulate(scene, t, dx0=[0.6, 0.0], q0=[np.pi], feedback=K)
     assert sim.info["method"] == "Radau" and sim.info["nfev"] < 1e5   # measured: 14 000
 
