@@ -37,6 +37,11 @@ Methods (continuous models):
        [0, 0, diag(mu), 0],              w = e^{mu (t - t0)} and f0
        [0, 0, 0,   0 ]]
 
+  Its rounding is checked after the march (:func:`_check_rounding`): where A is far from
+  normal the exponential applied to x is a small difference of large terms, and two more
+  marches with A, B and f0 moved by 2 eps tell how many digits are left (a warning above
+  1e-6, a refusal from 1).
+
 Discrete models (``dt`` > 0) step their difference equation x[k+1] = f0 + A x[k] + B u[k]
 whatever the method (``Response.method == "difference"``): ``t`` must be t[0] + k dt, a signal is
 sampled at ``t`` and an impulse becomes u[0] = amplitude / dt (one sample of that area).
