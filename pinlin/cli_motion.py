@@ -348,10 +348,10 @@ def _cmd_validity(args: argparse.Namespace) -> int:
     if folder is not None and folder.is_dir():    # a file there is refused before the run
         for path in plot_paths(folder, scene.name):
             check_file_target(path)
-    gain = _gain(args.feedback, linearize(scene)) if args.feedback is not None else None
+    model = linearize(scene) if args.feedback is not None or args.modes is not None else None
+    gain = _gain(args.feedback, model)
     modes = None
     if args.modes is not None:    # rows of the mode table, numbered from 1 as printed
-        model = linearize(scene)
         modes = mode_rows(modal(model if gain is None else model.closed_loop(gain[0])),
                           args.modes, "--modes")
     with options_named({"amplitudes": "--amplitudes", "periods": "--periods",

@@ -131,7 +131,7 @@ def zoh_rounding(A: np.ndarray, dt: float) -> float:
 
 
 def warn_if_inaccurate(name: str, dt: float, A: np.ndarray, advice: str = "use a shorter dt",
-                       what: str = "a zero-order hold over dt") -> bool:
+                       what: str = "a zero-order hold over dt") -> float:
     """AccuracyWarning when the zero-order hold over ``dt`` [s] of ``A`` may lose more than
     WARN_ZOH_ERROR (relative) to rounding: the sample time is ~1e10 times the model's fastest
     time scale or more, and the discrete matrices keep few correct digits; a ModelError
@@ -140,10 +140,11 @@ def warn_if_inaccurate(name: str, dt: float, A: np.ndarray, advice: str = "use a
     every mode decays below rounding within the step (max Re lambda dt < ln eps, every point
     of a stack): exp(A dt) is then 0 to rounding and the hold's B_d the steady state
     -A^-1 B, both computed to working precision (a damped pendulum over 1e15 s). ``what``
-    names the step in the message and ``advice`` ends it. Returns whether it warned."""
+    names the step in the message and ``advice`` ends it. Returns the estimate it warned
+    with, 0.0 where it did not warn."""
     error = zoh_rounding(A, dt)
     if error <= WARN_ZOH_ERROR or not _survives(A, dt):
-        return False
+        return 0.0
     if error >= 1.0:
         raise ModelError(f"model '{name}': {what} = {dt:g} s spans ||A|| dt = "
                          f"{error / _EPS:.2e} of the model's fastest time scale; rounding in "
@@ -154,7 +155,7 @@ def warn_if_inaccurate(name: str, dt: float, A: np.ndarray, advice: str = "use a
         f"model's fastest time scale; rounding in the matrix exponential may reach "
         f"{error:.1e} (relative) of the discrete matrices; {advice}",
         1.0 / max(error, _EPS)), stacklevel=3)
-    return True
+    return error
 
 
 def _survives(A: np.ndarray, dt: float) -> bool:

@@ -69,6 +69,8 @@ def _follow_link(path: Path) -> Path:
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
+#: The first bytes of a gain file (:mod:`pinlin.gain_files`).
+GAIN_MARKER = b"# pinlin gain:"
 #: How the files pinlin writes begin, by suffix: an existing non-empty file at an output
 #: path is replaced only if it begins so (an earlier result), never a file of another kind
 #: (a user's notes named report.html, a link to a system file).
@@ -81,10 +83,8 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
     ".npz": (b"PK\x03\x04", b"PK\x05\x06"),
     ".mat": (b"MATLAB",),
     ".json": (b"{",),
-    ".csv": (b"t,", b"# pinlin gain:"),   # a time history; a gain (GAIN_MARKER)
+    ".csv": (b"t,", GAIN_MARKER),   # a time history; a gain
 }
-#: The first bytes of a gain file (:mod:`pinlin.gain_files`).
-GAIN_MARKER = b"# pinlin gain:"
 
 
 #: Data formats whose signature any file of that kind has (every JSON object starts with

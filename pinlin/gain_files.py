@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import re
 from pathlib import Path
 
@@ -33,7 +32,7 @@ from .closed_loop import gain_matrix, same_point
 from .exceptions import ArgumentError, ModelFileError
 from .files import GAIN_MARKER, as_path, check_file_target, write_text_atomic
 from .linear_model import LinearModel
-from .model_files import _NPY_HEADERS
+from .model_files import npy_header
 from .trajectory_files import _content_lines, _csv_fields, _file, csv_number, csv_text, text_lines
 
 GAIN_FORMATS = (".csv", ".npy")
@@ -115,21 +114,16 @@ def _read_npy(path: Path, raw: bytes) -> np.ndarray:
     the bytes the file holds."""
     fh = io.BytesIO(raw)
     try:
-        version = np.lib.format.read_magic(fh)
-        if version not in _NPY_HEADERS:
-            raise ValueError(f"format version {version} is not one numpy writes")
-        shape, _, dtype = _NPY_HEADERS[version](fh)
+        shape, dtype, needed = npy_header(fh, path, ModelFileError)
     except ValueError as exc:
         raise ModelFileError(path, f"not a .npy array: {exc}") from None
-    if dtype.hasobject:
-        raise ModelFileError(path, "holds Python objects (a pickle), which pinlin never loads")
     if dtype.kind not in "fiu" or len(shape) != 2:
         raise ModelFileError(path, f"holds a {len(shape)}-D array of {dtype}; expected a 2-D "
                                    "array of numbers (inputs x states)")
-    if math.prod(shape) * dtype.itemsize != len(raw) - fh.tell():
-        raise ModelFileError(path, f"its header declares shape {shape} ("
-                                   f"{math.prod(shape) * dtype.itemsize} bytes of data) but "
-                                   f"the file holds {len(raw) - fh.tell()} bytes after it")
+    if needed != len(raw) - fh.tell():
+        raise ModelFileError(path, f"its header declares shape {shape} ({needed} bytes of "
+                                   f"data) but the file holds {len(raw) - fh.tell()} bytes "
+                                   "after it")
     try:
         K = np.load(io.BytesIO(raw), allow_pickle=False).astype(float)
     except (ValueError, OSError, EOFError) as exc:

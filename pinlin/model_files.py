@@ -18,7 +18,7 @@ import zipfile
 import zlib
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import IO, Any, TypeVar
 
 import numpy as np
 
@@ -269,6 +269,21 @@ _NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0,
                 (2, 0): np.lib.format.read_array_header_2_0}
 
 
+def npy_header(fh: IO[bytes], path: Path, bad: Callable[[Path, str], ModelFileError],
+               what: str = "") -> tuple[tuple[int, ...], np.dtype, int]:
+    """(shape, dtype, bytes of data it declares) of the .npy header at ``fh``'s position,
+    read before numpy allocates anything; a format version pinlin does not read and object
+    arrays (pickles) are refused by ``bad`` (``what`` begins the message, e.g. the member).
+    A magic string that is not .npy raises numpy's ValueError."""
+    version = np.lib.format.read_magic(fh)
+    if version not in _NPY_HEADERS:
+        raise bad(path, f"{what}.npy format version {version} is not one pinlin writes")
+    shape, _, dtype = _NPY_HEADERS[version](fh)
+    if dtype.hasobject:
+        raise bad(path, f"{what}holds Python objects (a pickle), which pinlin never loads")
+    return shape, dtype, math.prod(shape) * dtype.itemsize
+
+
 def _check_npy_headers(path: Path, raw: bytes,
                        bad: Callable[[Path, str], ModelFileError] = _bad) -> None:
     """Read every array's .npy header before numpy allocates anything: refuse members that
@@ -282,15 +297,7 @@ def _check_npy_headers(path: Path, raw: bytes,
                 raise bad(path, f"member {member.filename!r:.60} is not an array (.npy)")
             key = member.filename.removesuffix(".npy")
             with zf.open(member) as fh:
-                version = np.lib.format.read_magic(fh)
-                if version not in _NPY_HEADERS:
-                    raise bad(path, f"member '{key}': .npy format version {version} is not "
-                                    "one pinlin writes")
-                shape, _, dtype = _NPY_HEADERS[version](fh)
-            if dtype.hasobject:
-                raise bad(path, f"member '{key}': holds Python objects (a pickle), which "
-                                "pinlin never loads")
-            needed = math.prod(shape) * dtype.itemsize
+                shape, _, needed = npy_header(fh, path, bad, f"member '{key}': ")
             if needed > member.file_size:
                 raise bad(path, f"member '{key}': its header declares shape {shape} "
                                 f"({needed} bytes) but it holds {member.file_size} bytes")

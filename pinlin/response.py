@@ -66,7 +66,7 @@ import scipy.linalg as sla
 
 from .arrays import real_array, sample_times
 from .conditioning import AccuracyWarning
-from .discretization import WARN_ZOH_ERROR, warn_if_inaccurate, zoh_rounding
+from .discretization import WARN_ZOH_ERROR, warn_if_inaccurate
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .linear_model import LinearModel
 from .resources import check_memory
@@ -202,13 +202,13 @@ def _march_all(model, std, method, modes, f0, c, mu, t, held, xs0, U, E, F, note
     ``F`` only where the input is a signal (its derivative known)."""
     n = model.n_states
     if method == "exact":   # each step h an expm of A h: as a zero-order hold over h warns
-        warned = len(t) > 1 and warn_if_inaccurate(
-            model.name, float(np.diff(t).max()), std.A,
+        longest = float(np.diff(t).max()) if len(t) > 1 else 0.0
+        said = longest and warn_if_inaccurate(
+            model.name, longest, std.A,
             "use shorter steps between the sample times, or method='modal' (exact per mode)",
             "the longest exact step between two sample times, h")
         xs = _march(std.A, ((0, n),), std.B, f0, c, mu, t, held, xs0).real
-        if len(t) > 1:
-            said = zoh_rounding(std.A, float(np.diff(t).max())) if warned else 0.0
+        if longest:
             _check_rounding(model.name, std, f0, c, mu, t, held, xs0, xs, said)
         notes.append("matrix exponential of the augmented matrix [[A, B, f0], [0, 0, 0]] h")
     else:

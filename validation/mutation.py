@@ -256,8 +256,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'modal response: Jordan/Schur blocks hold the next sample instead of the current one'),
     'exact_warning_on_shortest_step': (
         'pinlin/response.py',
-        '            model.name, float(np.diff(t).max()), std.A,',
-        '            model.name, float(np.diff(t).min()), std.A,',
+        '        longest = float(np.diff(t).max()) if len(t) > 1 else 0.0',
+        '        longest = float(np.diff(t).min()) if len(t) > 1 else 0.0',
         'exact response checks the rounding of its shortest step, not its longest'),
     'stiff_criterion_or': (
         'pinlin/simulation.py',
@@ -377,8 +377,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "the closed loop's damping takes the position gains"),
     'exact_check_skipped_after_step_warning': (
         'pinlin/response.py',
-        '        if len(t) > 1:\n            said = ',
-        '        if len(t) > 1 and not warned:\n            said = ',
+        '        if longest:\n            _check_rounding(',
+        '        if longest and not said:\n            _check_rounding(',
         "the exact response's rounding check is skipped where the long-step warning fired"),
     'exact_check_one_sample_unscaled': (
         'pinlin/response.py', 'ROUNDING_SAMPLES = 2\nROUNDING_FACTOR = 10.0',
