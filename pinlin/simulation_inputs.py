@@ -100,8 +100,6 @@ class Inputs:
         (:func:`pinlin.closed_loop.designed_gain`); or a callable feedback(t, x[cols]) ->
         (nu,). ``x0``: the initial 2 nv state, on which a callable is tried once (its output
         checked); ``state_names``: the names of x's 2 nv entries."""
-        if feedback is None:
-            return
         nu, nz = self.u0.size, columns.size
         if nu == 0:
             raise ArgumentError("feedback", "the scene has no inputs to feed back to (its "
