@@ -4,18 +4,23 @@ Every way of running a trajectory (one process, worker processes on shared memor
 ``concurrent.futures`` executor) calls :func:`fill` on arrays laid out by :class:`Layout`; it
 writes the models of points ``lo:hi`` in place. Two paths:
 
-- **batch** (analytic derivatives, no steady rotation): per point one
-  ``pin.computeABADerivatives(model, data, q, v, tau)`` with the generalized force
-  tau = S u + tau_spring(q) - D v of the scene, whose outputs are the state matrix's lower block
-  row and B directly (chapter 9.1.1 with R = I, Pinocchio's ABA derivatives)::
+- **batch** (analytic derivatives, no steady rotation): per point the kernels of
+  :func:`pinlin.linearize` (chapter 9.1.1 with R = I): ``pin.aba`` with the generalized force
+  tau = S u + tau_spring(q) - D v of the scene gives the acceleration, ``pin.computeMinverse``
+  M^-1 from the same recursion's workspace, ``pin.computeRNEADerivatives`` at (q, v, ddq) the
+  stiffness and velocity terms, and one product the lower block row::
 
-      A = [[K0(v), I], [ddq_dq - M^-1 diag(k), ddq_dv - M^-1 diag(c)]],
+      A = [[K0(v), I], -M^-1 [K, C_damp]],   K = dtau_dq + diag(k),  C_damp = dtau_dv + diag(c),
       B = [[0], [M^-1 S]],   f0 = [v; ddq],
 
-  M^-1 = ``data.Minv``; k and c the spring stiffness and damping (their derivatives enter
-  through M^-1); K0(v) is the Lie-group block of :mod:`pinlin.chart`, built for all points at
-  once with numpy. No LinearModel, no names, no per-point checks: :func:`check` looks at the
-  whole stack once at the end.
+  k and c the spring stiffness and damping; K0(v) is the Lie-group block of
+  :mod:`pinlin.chart`, built for all points at once with numpy. No LinearModel, no names, no
+  per-point checks: :func:`check` looks at the whole stack once at the end. These three calls
+  and the product cost less than one ``pin.computeABADerivatives`` (which forms the same RNEA
+  derivatives and M^-1 inside, Talos at moving states: about 0.9 of it), and give the single
+  call's numbers. ``computeMinverse(model, data)`` reads what ``aba`` left only when ``aba``
+  ran in the WORLD convention: after the default LOCAL one it returns a wrong M^-1, silently
+  (Pinocchio 4.1).
 - **per point**: :func:`pinlin.linearize` at each point (steady rotation, ``fd3``/``fd5``), its
   matrices copied into the stack.
 
@@ -24,13 +29,10 @@ Output matrices: C and D are constant when the output is the state or joint coor
 (:func:`pinlin.formulations.independent.output_matrices`, as :func:`pinlin.linearize` does).
 
 Second-order matrices (``second_order=True``, opt-in): M, C_damp and K of every point, as
-:func:`pinlin.linearize` gives them (Bu = S is constant). On the batch path they cost one
-``pin.crba`` per point (M, its upper triangle mirrored) and three copies: the same
-``computeABADerivatives`` call leaves the RNEA derivatives at (q, v, ddq) in
-``data.dtau_dq`` and ``data.dtau_dv`` (Pinocchio computes ddq_dq = -M^-1 dtau_dq from them),
-so K = dtau_dq + diag(k) and C_damp = dtau_dv + diag(c) exactly as
-:func:`pinlin.derivatives.second_order_terms` forms them, without a product M A and its
-rounding; C_damp is zero where the point has no velocity terms (v = 0, no damping).
+:func:`pinlin.linearize` gives them (Bu = S is constant). On the batch path they cost three
+copies: ``computeRNEADerivatives`` returns M with the derivatives, and K and C_damp are the
+factors of the product above; C_damp is zero where the point has no velocity terms (v = 0, no
+damping).
 
 The arrays handed to :func:`fill` must be zero-filled (``np.zeros``, a fresh shared-memory
 file): the structural zeros of A and B are not written again.
@@ -57,6 +59,8 @@ SECOND_ORDER = ("M", "C_damp", "K")
 #: Points per block of the batch kernel: a block's results (Talos: 65 kB a point) are screened
 #: for NaN and inf while they are still in the cache.
 BLOCK = 32
+#: ``pin.aba``'s convention that lets ``pin.computeMinverse(model, data)`` reuse its workspace.
+WORLD = pin.Convention.WORLD
 
 
 @dataclass(frozen=True)
@@ -310,56 +314,43 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
                 second_order: bool = False) -> None:
     """The lower block rows of A and B and the acceleration of points lo:hi, whose
     generalized forces are ``tau`` (M^-1's diagonals into ``minv_diag``); with
-    ``second_order``, also M, C_damp and K (module docstring): the RNEA derivatives the ABA
-    derivatives leave in ``data.dtau_dq``/``data.dtau_dv``, and M from ``pin.crba`` (its upper
-    triangle, mirrored), as
-    :func:`pinlin.linearize` forms them."""
+    ``second_order``, also M, C_damp and K (module docstring), as :func:`pinlin.linearize`
+    forms them: its kernels and its one product -M^-1 [K, C_damp]."""
     model, data, nv = system.model, system.data, system.nv
     Q, V = arrays["q"], arrays["v"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
-    Aq, Av, Bv, acc = A[:, nv:, :nv], A[:, nv:, nv:], B[:, nv:], f0[:, nv:]
+    lower, Bv, acc = A[:, nv:, :], B[:, nv:], f0[:, nv:]
     cols = system.actuated_columns
     ks, cs = plan.spring_cols, plan.damping_cols
     stiffness, damping = system.stiffness[ks], system.damping[cs]
-    derivatives = pin.computeABADerivatives
-    ddq = data.ddq  # a view of Pinocchio's own vector, rewritten by every call
     dg = minv_diag[:hi - lo]
-    if not ks.size and not cs.size and not second_order:
-        for k in range(lo, hi):
-            dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
-            Aq[k] = dq
-            Av[k] = dv
-            Bv[k] = Minv[:, cols]
-            acc[k] = ddq
-            dg[k - lo] = Minv.diagonal()
-        return
+    KC = np.empty((nv, 2 * nv))  # [K, C_damp] of one point
     if second_order:
         M, C, K = arrays["M"], arrays["C_damp"], arrays["K"]
-    for k in range(lo, hi):  # springs and damping: d tau / d(dq, v) through M^-1
-        dq, dv, Minv = derivatives(model, data, Q[k], V[k], tau[k - lo])
-        Aq[k] = dq
-        Av[k] = dv
-        if ks.size:
-            Aq[k][:, ks] -= Minv[:, ks] * stiffness
-        if cs.size:
-            Av[k][:, cs] -= Minv[:, cs] * damping
+    for k in range(lo, hi):
+        acc[k] = pin.aba(model, data, Q[k], V[k], tau[k - lo], WORLD)
+        Minv = pin.computeMinverse(model, data)  # from aba's WORLD-convention workspace
         Bv[k] = Minv[:, cols]
-        acc[k] = ddq
         dg[k - lo] = Minv.diagonal()
+        dq, dv, M_k = pin.computeRNEADerivatives(model, data, Q[k], V[k], acc[k])
+        KC[:, :nv] = dq
+        KC[:, nv:] = dv
+        if ks.size:  # springs act on 1-DoF joints: d(difference)/d(dq) = 1
+            KC[ks, ks] += stiffness
+        if cs.size:
+            KC[cs, nv + cs] += damping
+        np.matmul(Minv, KC, out=lower[k])  # computeRNEADerivatives leaves Minv
+        np.negative(lower[k], out=lower[k])
         if second_order:
-            K[k] = data.dtau_dq  # d rnea / dq at (q, v, ddq): dq = -M^-1 dtau_dq
-            C[k] = data.dtau_dv
-            M[k] = pin.crba(model, data, Q[k])  # after the copies: the same workspace
+            K[k] = KC[:, :nv]
+            C[k] = KC[:, nv:]
+            M[k] = M_k
     if not second_order:
         return
-    lower = np.tril_indices(nv, -1)  # Pinocchio 4 fills both triangles, older ones the upper
+    below = np.tril_indices(nv, -1)  # Pinocchio 4 fills both triangles, older ones the upper
     Mb = M[lo:hi]
-    Mb[:, lower[0], lower[1]] = Mb[:, lower[1], lower[0]]
-    if ks.size:  # springs act on 1-DoF joints: d(difference)/d(dq) = 1
-        K[lo:hi, ks, ks] += stiffness
-    if cs.size:
-        C[lo:hi, cs, cs] += damping
-    else:  # no velocity terms at a point at rest without damping: C_damp = 0 exactly
+    Mb[:, below[0], below[1]] = Mb[:, below[1], below[0]]
+    if not cs.size:  # no velocity terms at a point at rest without damping: C_damp = 0 exactly
         C[lo:hi][~V[lo:hi].any(axis=1)] = 0.0
 
 

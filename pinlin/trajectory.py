@@ -8,8 +8,9 @@ mechanisms in the independent coordinates of their first point, :mod:`pinlin.tra
 
 stored as arrays with the point first: ``A`` (N, n, n), ``B`` (N, n, m), ``C`` (N, p, n),
 ``D`` (N, p, m), ``f0`` (N, n); ``model.at(k)`` is the k-th :class:`~pinlin.LinearModel`.
-How the stack is computed (one pass of ``pin.computeABADerivatives`` per point, or
-:func:`pinlin.linearize` per point where that kernel does not apply) is in :mod:`pinlin.batch`
+How the stack is computed (per point ``pin.aba``, ``pin.computeMinverse``,
+``pin.computeRNEADerivatives`` and one product, or :func:`pinlin.linearize` per point where
+those kernels do not apply) is in :mod:`pinlin.batch`
 (mechanisms: assembled and linearized point by point, :mod:`pinlin.trajectory_loops`);
 worker processes and executors (Dask) in :mod:`pinlin.parallel`; files in
 :mod:`pinlin.trajectory_files`.
@@ -62,8 +63,9 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
 
     Point k is the model :func:`pinlin.linearize` gives at ``q=q[k], v=v[k], u=u[k]``
     (independent formulation). With analytic derivatives and no steady rotation the stack of
-    an open chain comes from one ``pin.computeABADerivatives`` per point written straight
-    into the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize` per point.
+    an open chain comes from the kernels of :func:`pinlin.linearize` per point written
+    straight into the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize`
+    per point.
 
     A mechanism (loops, mimic couplings, contacts; weld loops, Lie-group joints and a
     standing robot's floating base, and fd3/fd5, point by point) is assembled point by
@@ -111,7 +113,7 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
             next N the points linearized.
         second_order: Also store M, C_damp, K (N, nv, nv) and Bu of every point, so that
             ``at(k)`` carries the second-order matrices :func:`pinlin.linearize` gives there
-            (open chains; on the batch path one ``pin.crba`` more per point,
+            (open chains; on the batch path three copies more per point,
             :mod:`pinlin.batch`). A mechanism's schedule of rest points has them in its
             independent coordinates (nz x nz; by single calls); its given-state trajectory
             refuses them: a single model at a moving state of a mechanism has none.

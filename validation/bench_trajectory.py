@@ -6,9 +6,11 @@ integrate(neutral, dq) with dq in [-1.5, 1.5], velocities in [-2, 2] rad/s or m/
 
 1. Per point, N = 1000: ``pinlin.linearize_trajectory`` (one process) divided by
    ``pin.computeABADerivatives`` alone at the same states (a Python loop over the points, the
-   same generalized forces). Target <= 1.15. Also the floor any dense result has: the same
-   kernel loop writing its three outputs into freshly allocated A and B stacks (the memory
-   the result needs: 65 kB a point, which the OS must hand out zeroed).
+   same generalized forces). Target <= 1.15. Also pinlin's own batch kernels alone (``aba``,
+   ``computeMinverse``, ``computeRNEADerivatives``, one product: :mod:`pinlin.batch`), and the
+   floor any dense result has: those kernels writing their outputs into freshly allocated A
+   and B stacks (the memory the result needs: 65 kB a point, which the OS must hand out
+   zeroed).
 2. ``workers=2`` against one process at N = 10 000 (target >= 1.8x), the pool started (it is
    kept for the life of the program), and the first call, which starts it.
 3. The crossover: speed-up of ``workers=2`` (pool started) for N from 25 to 3200 points; below
@@ -86,13 +88,29 @@ def per_point(scene: pinlin.Scene, n_rounds: int) -> dict[str, float]:
         for k in range(N):
             pin.computeABADerivatives(model, data, q[k], v[k], tau[k])
 
-    def kernel_into(A, B):   # the kernel's outputs copied into the stacks, nothing else
-        Aq, Av, Bv = A[:, nv:, :nv], A[:, nv:, nv:], B[:, nv:]
+    WORLD = pin.Convention.WORLD
+    KC = np.empty((nv, 2 * nv))
+
+    def kernels():   # pinlin's batch kernels (pinlin.batch), nothing written out
         for k in range(N):
-            dq, dv, Minv = pin.computeABADerivatives(model, data, q[k], v[k], tau[k])
-            Aq[k] = dq
-            Av[k] = dv
+            a = pin.aba(model, data, q[k], v[k], tau[k], WORLD)
+            Minv = pin.computeMinverse(model, data)
+            dq, dv, _ = pin.computeRNEADerivatives(model, data, q[k], v[k], a)
+            KC[:, :nv] = dq
+            KC[:, nv:] = dv
+            np.matmul(Minv, KC)
+
+    def kernel_into(A, B):   # the kernels' outputs written into the stacks, nothing else
+        lower, Bv = A[:, nv:], B[:, nv:]
+        for k in range(N):
+            a = pin.aba(model, data, q[k], v[k], tau[k], WORLD)
+            Minv = pin.computeMinverse(model, data)
             Bv[k] = Minv[:, cols]
+            dq, dv, _ = pin.computeRNEADerivatives(model, data, q[k], v[k], a)
+            KC[:, :nv] = dq
+            KC[:, nv:] = dv
+            np.matmul(Minv, KC, out=lower[k])
+            np.negative(lower[k], out=lower[k])
         A[:, np.arange(nv), nv + np.arange(nv)] = 1.0
         return A, B
 
@@ -116,10 +134,10 @@ def per_point(scene: pinlin.Scene, n_rounds: int) -> dict[str, float]:
     assert traj.info["path"] == "batch"
     np.testing.assert_allclose(traj.A[0, nv:], floor()[0][0, nv:], rtol=0, atol=1e-9)
     np.testing.assert_array_equal(reused().A, traj.A)
-    times = rounds({"kernel": kernel, "floor": floor, "batch": batch,
+    times = rounds({"kernel": kernel, "kernels": kernels, "floor": floor, "batch": batch,
                     "floor_reused": floor_reused, "reused": reused}, n_rounds)
     out = {f"{k}_us": 1e6 * statistics.median(t) / N for k, t in times.items()}
-    for name in ("floor", "batch", "floor_reused", "reused"):
+    for name in ("kernels", "floor", "batch", "floor_reused", "reused"):
         out[f"{name}_ratio"] = statistics.median(
             [a / b for a, b in zip(times[name], times["kernel"], strict=True)])
     return out
@@ -274,7 +292,9 @@ def report(results: dict, args: argparse.Namespace) -> str:
         "| what | time per point | / computeABADerivatives |",
         "| --- | ---: | ---: |",
         f"| `pin.computeABADerivatives` alone (Python loop) | {pp['kernel_us']:.1f} us | 1 |",
-        f"| the same loop writing into fresh A, B stacks (the floor of a dense result) | "
+        f"| pinlin's batch kernels alone (`aba`, `computeMinverse`, `computeRNEADerivatives`, "
+        f"one product) | {pp['kernels_us']:.1f} us | {pp['kernels_ratio']:.3f} |",
+        f"| those kernels writing into fresh A, B stacks (the floor of a dense result) | "
         f"{pp['floor_us']:.1f} us | {pp['floor_ratio']:.3f} |",
         f"| `pinlin.linearize_trajectory` | {pp['batch_us']:.1f} us | "
         f"**{pp['batch_ratio']:.3f}** |",
@@ -285,7 +305,7 @@ def report(results: dict, args: argparse.Namespace) -> str:
         "",
         f"Target: <= 1.15. The result of 1000 points is {results['bytes'] / 1e6:.0f} MB (A and "
         "B dense), which the OS hands out zeroed: the floor row measures that cost with the "
-        "kernel's own outputs copied in and nothing else. What `linearize_trajectory` adds on "
+        "kernels' own outputs written in and nothing else. What `linearize_trajectory` adds on "
         f"top ({pp['batch_ratio'] - pp['floor_ratio']:+.3f}) is the kinematic rows, f0, the "
         "diagonal of M^-1, the screening for NaN and the checks of the input arrays. An "
         "optimizer that re-linearizes the same horizon (iLQR, DDP) passes the previous result "
@@ -341,8 +361,8 @@ def report(results: dict, args: argparse.Namespace) -> str:
     return "\n".join(lines)
 
 
-MECHANISM_NOTES = """(Before the stacked kernels: 22x and 41x.) The open chain is one
-``computeABADerivatives`` per point plus its outputs. A mechanism's point now costs, from
+MECHANISM_NOTES = """(Before the stacked kernels: 22x and 41x.) The open chain is the batch
+kernels of part 1 per point plus its outputs. A mechanism's point now costs, from
 Python, only Pinocchio calls: assembly (:mod:`pinlin.trajectory_assembly`: the closure check of
 all given points from frame positions, then per point Newton from a start predicted along the
 manifold's tangent and the previous step's curvature, 2 kinematics passes on a smooth sweep (one
