@@ -104,13 +104,15 @@ def check_plot(path: str | None) -> Path | None:
 
 
 def write_history(path: Path, t: np.ndarray, columns: dict[str, np.ndarray]) -> None:
-    """t and named columns as CSV (a header row) or NPZ (arrays t, names, values)."""
-    from .files import write_bytes_atomic, write_text_atomic
+    """t and named columns as CSV (the marker line :data:`pinlin.files.HISTORY_MARKER`, then a
+    header row) or NPZ (arrays t, names, values)."""
+    from .files import HISTORY_MARKER, write_bytes_atomic, write_text_atomic
 
     names = list(columns)
     values = np.column_stack([t] + [columns[n] for n in names])
     if path.suffix == ".csv":
-        lines = [",".join(["t", *names])]
+        marker = HISTORY_MARKER.decode() + ": t [s] and the signals the header names (SI)"
+        lines = [marker, ",".join(["t", *names])]
         lines += [",".join(f"{x:.17g}" for x in row) for row in values]
         write_text_atomic(path, "\n".join(lines) + "\n")
     else:

@@ -71,6 +71,10 @@ def _follow_link(path: Path) -> Path:
 
 #: The first bytes of a gain file (:mod:`pinlin.gain_files`).
 GAIN_MARKER = b"# pinlin gain:"
+#: The first bytes of a time history in CSV (``pinlin simulate|response --out h.csv``): a
+#: comment line, so that the history also reads as a states file (``t,q:...,v:...``); a
+#: user's states file, which has the same header, is then never taken for one and replaced.
+HISTORY_MARKER = b"# pinlin history"
 #: How the files pinlin writes begin, by suffix: an existing non-empty file at an output
 #: path is replaced only if it begins so (an earlier result), never a file of another kind
 #: (a user's notes named report.html, a link to a system file).
@@ -83,7 +87,7 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
     ".npz": (b"PK\x03\x04", b"PK\x05\x06"),
     ".mat": (b"MATLAB",),
     ".json": (b"{",),
-    ".csv": (b"t,", GAIN_MARKER),   # a time history; a gain
+    ".csv": (HISTORY_MARKER, GAIN_MARKER),
 }
 
 
@@ -117,12 +121,12 @@ _HEAD = 8192
 
 def _pinlin_content(target: Path, suffix: str, kind: str | None = None) -> bool:
     """Whether ``target`` (a file of the kind ``suffix`` names) holds what pinlin writes there:
-    pinlin's marker in a PNG, GIF or HTML head, a CSV header of t and named signals
-    (``q:...``), the arrays of a model, trajectory or history in an .npz or .mat (read from
-    the archive's listing, not the data), a model's first key in .json; other kinds are told by
-    their head alone. ``kind`` ("model": a model or trajectory model, "history": a time
-    history, "gain": a gain file) narrows an .npz or .csv to what the caller writes: a history
-    does not replace a saved model or a gain, nor a model or a gain a history."""
+    pinlin's marker in a PNG, GIF or HTML head and in a CSV's first line, the arrays of a
+    model, trajectory or history in an .npz or .mat (read from the archive's listing, not the
+    data), a model's first key in .json; other kinds are told by their head alone. ``kind``
+    ("model": a model or trajectory model, "history": a time history, "gain": a gain file)
+    narrows an .npz or .csv to what the caller writes: a history does not replace a saved
+    model or a gain, nor a model or a gain a history."""
     import zipfile
 
     try:
@@ -150,11 +154,9 @@ def _pinlin_content(target: Path, suffix: str, kind: str | None = None) -> bool:
         if suffix in (".html", ".htm"):
             return _HTML_TITLE in head
         if suffix == ".csv":
-            if head.startswith(GAIN_MARKER) or kind == "gain":   # a gain only for a gain
-                return head.startswith(GAIN_MARKER) and kind in (None, "gain")
-            columns = head.split(b"\n", 1)[0].split(b",")
-            return columns[0] == b"t" and len(columns) > 1 and all(b":" in c
-                                                                   for c in columns[1:])
+            if head.startswith(GAIN_MARKER):
+                return kind in (None, "gain")
+            return head.startswith(HISTORY_MARKER) and kind in (None, "history")
     except (OSError, ValueError, zipfile.BadZipFile):
         return False
     return True

@@ -22,7 +22,8 @@ def test_simulate_writes_what_the_api_computes(capfd, tmp_path):
                          "--x0", "q:hinge=0.1", "--out", str(csv), "--plot", str(png))
     assert code == 0, err
     assert "nonlinear" in out and "energy change" in out
-    header, *rows = csv.read_text().splitlines()
+    marker, header, *rows = csv.read_text().splitlines()
+    assert marker.startswith("# pinlin history")
     assert header.split(",")[:3] == ["t", "q:hinge", "v:hinge"]
     table = np.array([[float(x) for x in r.split(",")] for r in rows])
     t = np.arange(21) * 0.05
@@ -44,7 +45,7 @@ def test_simulate_of_a_mechanism_writes_its_independent_states(scene, capfd, tmp
                          "--x0", f"{first}=0.01", "--out", str(csv))
     assert code == 0, err
     assert "loops" in out.splitlines()[0]      # the effects named include the loops
-    header, *rows = csv.read_text().splitlines()
+    _, header, *rows = csv.read_text().splitlines()
     n = model.n_states
     assert header.split(",")[1:n + 1] == list(model.state_names)
     table = np.array([[float(x) for x in r.split(",")] for r in rows])
@@ -169,7 +170,7 @@ def test_time_grid_ends_at_t_end(capfd, tmp_path):
     code, _, _ = run(capfd, "simulate", "pendulum", "--t-end", "1", "--dt", "0.3", "--out",
                      str(out))
     assert code == 0
-    t = [float(line.split(",")[0]) for line in out.read_text().splitlines()[1:]]
+    t = [float(line.split(",")[0]) for line in out.read_text().splitlines()[2:]]
     np.testing.assert_allclose(t, [0.0, 0.3, 0.6, 0.9, 1.0], rtol=0, atol=1e-15)
 
 
@@ -302,3 +303,30 @@ def test_trajectory_out_over_a_time_history_is_refused_before_the_work(capfd, tm
     code, out, err = run(capfd, "trajectory", "pendulum", str(states), "--out", str(history))
     assert code == 2 and "holds a saved time history, not a model" in err, err
     assert history.read_bytes() == before
+
+
+def test_a_history_replaces_only_a_history(capfd, tmp_path):
+    """`--out h.csv` replaces a time history pinlin wrote (its first line says so), never a
+    user's states file, whose header (t, q:..., v:...) a history shares. The history reads
+    back as a states file: its marker is a comment."""
+    mine = tmp_path / "plan.csv"
+    plan = "t,q:hinge,v:hinge,u:hinge\n0,0.1,0,0\n1,0.2,0,0\n"
+    mine.write_text(plan)
+    code, out, err = run(capfd, "simulate", "pendulum", "--t-end", "0.1", "--out", str(mine))
+    assert code == 2 and out == "" and "plan.csv" in err and "does not replace it" in err
+    assert mine.read_text() == plan
+    history = tmp_path / "h.csv"
+    for t_end in ("0.1", "0.2"):   # the second run replaces the first run's history
+        code, _, err = run(capfd, "simulate", "pendulum", "--t-end", t_end, "--dt", "0.05",
+                           "--out", str(history))
+        assert code == 0, err
+    rows = history.read_text().splitlines()
+    assert rows[0].startswith("# pinlin history") and len(rows) == 2 + 5
+    states = tmp_path / "states.csv"
+    lines = [",".join(r.split(",")[:2]) for r in rows]   # t, q:hinge: a schedule
+    states.write_text("\n".join(lines) + "\n")
+    code, _, err = run(capfd, "trajectory", "pendulum", str(states), "--out",
+                       str(tmp_path / "m.npz"))
+    assert code == 0, err
+    code, _, err = run(capfd, "simulate", "pendulum", "--t-end", "0.1", "--out", str(states))
+    assert code == 0, err      # a history (marker kept), edited: still pinlin's to replace

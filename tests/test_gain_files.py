@@ -221,7 +221,7 @@ def test_cli_simulate_closes_the_loop_as_by_hand(capfd, tmp_path):
                           "--out", out_file)
     assert code == 0, err
     assert "closed loop: u = u0 - K x, K (1 inputs x 2 states)" in out
-    header, *rows = out_file.read_text().splitlines()
+    _, header, *rows = out_file.read_text().splitlines()
     table = np.array([[float(x) for x in r.split(",")] for r in rows])
     names = header.split(",")
     t, x, v = (table[:, names.index(k)] for k in ("t", "q:hinge", "v:hinge"))
@@ -253,7 +253,7 @@ def test_cli_response_and_validity_take_the_closed_loop(capfd, tmp_path):
                           "--x0", "q:hinge=0.01", "--feedback", tmp_path / "K.npy",
                           "--nonlinear", "--out", out_file)
     assert code == 0, err
-    header, *rows = out_file.read_text().splitlines()
+    _, header, *rows = out_file.read_text().splitlines()
     table = np.array([[float(x) for x in r.split(",")] for r in rows])
     names = header.split(",")
     x0 = np.array([0.01, 0.0])

@@ -394,9 +394,15 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "a gain file's design point is read but not compared with the model's"),
     'gain_replaces_any_csv': (
         'pinlin/files.py',
-        'return head.startswith(GAIN_MARKER) and kind in (None, "gain")',
-        'return True',
-        "a gain file may replace a time history or a user's CSV, and be replaced by them"),
+        '                return kind in (None, "gain")',
+        '                return True',
+        "a time history may replace a gain file"),
+    'history_without_marker': (
+        'pinlin/cli_histories.py',
+        '        lines = [marker, ",".join(["t", *names])]',
+        '        lines = [",".join(["t", *names])]',
+        "a CSV time history is written without its marker line (it cannot be told from a "
+        "user's states file)"),
     'cli_response_feedback_sign': (
         'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
         '        model = model.closed_loop(-gain[0])',
