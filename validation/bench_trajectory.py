@@ -384,12 +384,14 @@ NOTES = """## Reading these figures
 
 - **Memory, not Python, is what separates the batch from the kernel.** The kernel leaves its
   outputs in Pinocchio's cache-resident workspace; the batch must put 65 kB per point into
-  fresh memory, which the OS zeroes on first touch. The floor row (the bare kernel loop
-  copying its three outputs into fresh stacks) shows that cost alone. Counted in
-  instructions, which no other process can disturb, the batch executes 1.09x the
-  instructions of the kernel loop (609 k against 558 k per point, N = 1000; valgrind's
-  callgrind, page zeroing by the OS not counted): the per-point Python bookkeeping, copies
-  and checks are about 9 % of the kernel. Reproduce: for MODE in setup, kernel and batch,
+  fresh memory, which the OS zeroes on first touch. The floor row (the batch's kernels
+  writing their outputs into fresh stacks) shows that cost alone. Counted in instructions,
+  which no other process can disturb, the batch executes 0.89x the instructions of the
+  `computeABADerivatives` loop (494 k against 553 k per point, N = 1000; valgrind's
+  callgrind, page zeroing by the OS not counted): its kernels (`aba`, `computeMinverse`,
+  `computeRNEADerivatives`, one product) do less than `computeABADerivatives` does, and the
+  per-point Python bookkeeping, copies and checks fit in the difference (before those
+  kernels: 1.09x, 609 k against 558 k). Reproduce: for MODE in setup, kernel and batch,
   `valgrind --tool=callgrind $(python -c "import sys; print(sys.executable)")
   validation/bench_trajectory.py --instructions MODE` (about a minute each) and take the
   differences of the totals ("Collected") from setup's, divided by 1000.
