@@ -1,7 +1,9 @@
 """A trajectory's points on several cores (worker processes) or machines (an executor).
 
 **Worker processes** (``linearize_trajectory(..., workers=k)``): a pool of k processes, kept
-for the life of the program (starting one costs more than a small trajectory), shares one
+for the life of the program (starting one costs more than a small trajectory) until a call asks
+for another number of workers (the pool of the old number then stops as soon as no call uses
+it: a sweep over workers = 1..8 keeps one pool, not 35 idle processes), shares one
 memory segment with the caller: the inputs q, v, u and every result array (:class:`Layout`)
 live in a file on ``/dev/shm`` (POSIX shared memory; a temporary folder where there is none or
 it is too small) that each worker maps, fills for its points and unmaps; nothing but the
@@ -52,7 +54,7 @@ import threading
 import time
 import weakref
 from collections import OrderedDict
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
@@ -89,6 +91,9 @@ _scenes: OrderedDict[str, Scene] = OrderedDict()
 _scenes_lock = threading.Lock()
 _pools: dict[int, ProcessPoolExecutor] = {}
 _pools_lock = threading.Lock()
+#: Calls running on the pool of each size, and the size asked for last (:func:`_using_pool`).
+_users: dict[int, int] = {}
+_latest = 0
 
 
 # --------------------------------------------------------------------------------------------
@@ -298,6 +303,29 @@ def _pool_threads(pool: ProcessPoolExecutor) -> list[threading.Thread]:
     return [t for t in threads if isinstance(t, threading.Thread)]
 
 
+@contextlib.contextmanager
+def _using_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """The pool of ``workers`` processes for one call (:func:`_pool`). Asking for a size stops
+    the idle pools of other sizes; a pool still in use stops when its last call ends, unless
+    its size is again the one asked for last."""
+    global _latest
+    with _pools_lock:
+        _latest = workers
+        _users[workers] = _users.get(workers, 0) + 1
+        idle = [_pools.pop(w) for w in list(_pools) if w != workers and not _users.get(w)]
+    for old in idle:   # idle: its processes end at once (and its threads, so the next
+        old.shutdown(wait=True)   # pool may fork: :func:`_start_method`)
+    try:
+        yield _pool(workers)
+    finally:
+        with _pools_lock:
+            _users[workers] -= 1
+            stale = (_pools.pop(workers, None) if not _users[workers] and workers != _latest
+                     else None)
+        if stale is not None:
+            stale.shutdown(wait=True)
+
+
 def _pool(workers: int) -> ProcessPoolExecutor:
     """The persistent pool of ``workers`` processes (started on first use)."""
     with _pools_lock:
@@ -321,8 +349,10 @@ _retired: weakref.WeakSet = weakref.WeakSet()
 def _after_fork_in_child() -> None:
     """A forked child starts with no pool (its parent's executors have no threads here) and
     fresh locks (one held at the fork would never be released here)."""
-    global _pools_lock, _scenes_lock, _finalizer, _retired
+    global _pools_lock, _scenes_lock, _finalizer, _retired, _latest
     _pools.clear()
+    _users.clear()
+    _latest = 0
     _pools_lock = threading.Lock()
     _scenes_lock = threading.Lock()
     _finalizer = None
@@ -384,22 +414,24 @@ def run_processes(system: System, layout: Layout, inputs: Mapping[str, np.ndarra
         arrays = layout.views(segment.map)
         for name in layout.inputs:
             arrays[name][:] = inputs[name]
-        try:
-            _run_pool(_pool(workers), blob, key, segment, layout, options, chunk, progress)
-        except BrokenProcessPool:  # a worker died (killed, out of memory): one fresh try
-            _abandon(workers)
+        with _using_pool(workers) as pool:
             try:
-                _run_pool(_pool(workers), blob, key, segment, layout, options, chunk,
-                          progress)
-            except BrokenProcessPool as exc:
+                _run_pool(pool, blob, key, segment, layout, options, chunk, progress)
+            except BrokenProcessPool:  # a worker died (killed, out of memory): one fresh try
                 _abandon(workers)
-                raise PinlinError(f"the worker processes died twice ({exc}): killed, out "
-                                  "of memory, or started by a script without "
-                                  "'if __name__ == \"__main__\":' (workers that are not forked "
-                                  "import it)? Run with fewer workers, or workers=1") from None
-        except (KeyboardInterrupt, SystemExit):
-            _abandon(workers)
-            raise
+                try:
+                    _run_pool(_pool(workers), blob, key, segment, layout, options, chunk,
+                              progress)
+                except BrokenProcessPool as exc:
+                    _abandon(workers)
+                    raise PinlinError(f"the worker processes died twice ({exc}): killed, out "
+                                      "of memory, or started by a script without "
+                                      "'if __name__ == \"__main__\":' (workers that are not "
+                                      "forked import it)? Run with fewer workers, or "
+                                      "workers=1") from None
+            except (KeyboardInterrupt, SystemExit):
+                _abandon(workers)
+                raise
     finally:
         segment.unlink()
     return arrays

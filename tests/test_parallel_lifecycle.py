@@ -227,3 +227,39 @@ def _in_pool_worker() -> tuple[str, str]:
     except Exception as exc:  # noqa: BLE001
         return type(exc).__name__, str(exc)
     return "", ""
+
+
+def test_a_new_number_of_workers_stops_the_idle_pool_of_the_old(tmp_path):
+    """Pools were kept per number of workers: a sweep over workers = 2, 3, 4 left 9 idle
+    processes for the life of the program. Asking for another number stops the idle pool of
+    the old one (its processes end, the new pool still forks); the results are the serial
+    ones throughout."""
+    run = _script(tmp_path, """
+        import os
+        import numpy as np
+        import pinlin
+        from pinlin import parallel
+
+        rng = np.random.default_rng(0)
+        q, v, u = (rng.uniform(-1, 1, (60, 1)) for _ in range(3))
+        serial = pinlin.linearize_trajectory("pendulum", q, v, u)
+        before = None
+        for workers in (2, 3, 2):
+            traj = pinlin.linearize_trajectory("pendulum", q, v, u, workers=workers)
+            assert np.array_equal(traj.A, serial.A) and np.array_equal(traj.B, serial.B)
+            assert list(parallel._pools) == [workers], list(parallel._pools)
+            pool = parallel._pools[workers]
+            assert pool._mp_context.get_start_method() == "fork"
+            if before is not None:   # the pool of the number asked for before has ended
+                assert not set(before) & set(pool._processes)
+                for pid in before:
+                    try:
+                        os.kill(pid, 0)
+                        print("alive", pid)
+                    except ProcessLookupError:
+                        pass
+            before = list(pool._processes)
+            print(workers, len(before), flush=True)
+    """)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert run.stdout.split() == ["2", "2", "3", "3", "2", "2"], run.stdout
