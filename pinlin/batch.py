@@ -324,7 +324,8 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
     ks, cs = plan.spring_cols, plan.damping_cols
     stiffness, damping = system.stiffness[ks], system.damping[cs]
     dg = minv_diag[:hi - lo]
-    KC = np.empty((nv, 2 * nv))  # [K, C_damp] of one point
+    KC = np.empty((nv, 2 * nv))  # -[K, C_damp] of one point (negation is exact)
+    negK, negC = KC[:, :nv], KC[:, nv:]
     if second_order:
         M, C, K = arrays["M"], arrays["C_damp"], arrays["K"]
     for k in range(lo, hi):
@@ -333,17 +334,16 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
         Bv[k] = Minv[:, cols]
         dg[k - lo] = Minv.diagonal()
         dq, dv, M_k = pin.computeRNEADerivatives(model, data, Q[k], V[k], acc[k])
-        KC[:, :nv] = dq
-        KC[:, nv:] = dv
+        np.negative(dq, out=negK)
+        np.negative(dv, out=negC)
         if ks.size:  # springs act on 1-DoF joints: d(difference)/d(dq) = 1
-            KC[ks, ks] += stiffness
+            KC[ks, ks] -= stiffness
         if cs.size:
-            KC[cs, nv + cs] += damping
+            KC[cs, nv + cs] -= damping
         np.matmul(Minv, KC, out=lower[k])  # computeRNEADerivatives leaves Minv
-        np.negative(lower[k], out=lower[k])
         if second_order:
-            K[k] = KC[:, :nv]
-            C[k] = KC[:, nv:]
+            np.negative(negK, out=K[k])
+            np.negative(negC, out=C[k])
             M[k] = M_k
     if not second_order:
         return

@@ -68,14 +68,23 @@ def test_a_urdf_rewritten_between_calls_is_rebuilt_in_the_workers(tmp_path):
     np.testing.assert_array_equal(again.B, serial.B)
 
 
-def test_the_pools_own_threads_do_not_make_the_next_pool_forkserver():
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork: Linux only")
+def test_the_pools_own_threads_do_not_make_the_next_pool_forkserver(tmp_path):
     """A pool's own threads (manager, queue feeder) made the next pool (another number of
-    workers) forkserver, which re-ran unguarded scripts."""
-    q, v, u = _states(40)
-    for workers in (2, 3):
-        pinlin.linearize_trajectory("pendulum", q, v, u, workers=workers)
-    if sys.platform.startswith("linux"):
-        assert parallel._start_method() == "fork"
+    workers) forkserver, which re-ran unguarded scripts. In a fresh process: a thread another
+    library leaves running in this one (Dask's offload thread, after a LocalCluster test)
+    rightly makes it forkserver."""
+    run = _script(tmp_path, """
+        import numpy as np
+        import pinlin
+        from pinlin import parallel
+
+        q = np.zeros((40, 1))
+        for workers in (2, 3):
+            pinlin.linearize_trajectory("pendulum", q, q, q, workers=workers)
+            print(parallel._start_method(), flush=True)
+    """)
+    assert run.stdout.split() == ["fork", "fork"], run.stdout + run.stderr
 
 
 @pytest.mark.parametrize("parent_first", [False, True], ids=["child", "child_after_parent"])
