@@ -4,9 +4,9 @@ Every way of running a trajectory (one process, worker processes on shared memor
 ``concurrent.futures`` executor) calls :func:`fill` on arrays laid out by :class:`Layout`; it
 writes the models of points ``lo:hi`` in place. Two paths:
 
-- **batch** (analytic derivatives, no steady rotation): per point the kernels of
-  :func:`pinlin.linearize` (chapter 9.1.1 with R = I): ``pin.aba`` with the generalized force
-  tau = S u + tau_spring(q) - D v of the scene gives the acceleration, ``pin.computeMinverse``
+- **batch** (analytic derivatives, no steady rotation): per point (chapter 9.1.1 with
+  R = I) ``pin.aba`` with the generalized force tau = S u + tau_spring(q) - D v of the
+  scene gives the acceleration, ``pin.computeMinverse``
   M^-1 from the same recursion's workspace, ``pin.computeRNEADerivatives`` at (q, v, ddq) the
   stiffness and velocity terms, and one product the lower block row::
 
@@ -17,10 +17,11 @@ writes the models of points ``lo:hi`` in place. Two paths:
   :mod:`pinlin.chart`, built for all points at once with numpy. No LinearModel, no names, no
   per-point checks: :func:`check` looks at the whole stack once at the end. These three calls
   and the product cost less than one ``pin.computeABADerivatives`` (which forms the same RNEA
-  derivatives and M^-1 inside, Talos at moving states: about 0.9 of it), and give the single
-  call's numbers. ``computeMinverse(model, data)`` reads what ``aba`` left only when ``aba``
-  ran in the WORLD convention: after the default LOCAL one it returns a wrong M^-1, silently
-  (Pinocchio 4.1).
+  derivatives and M^-1 inside, Talos at moving states: about 0.9 of it). The lower block row
+  is the single call's product -M^-1 [K, C_damp] of the same factors; its acceleration is
+  M^-1 times the RNEA residual, equal to ``aba``'s to rounding. ``computeMinverse(model,
+  data)`` reads what ``aba`` left only when ``aba`` ran in the WORLD convention: after the
+  default LOCAL one it returns a wrong M^-1, silently (Pinocchio 4.1).
 - **per point**: :func:`pinlin.linearize` at each point (steady rotation, ``fd3``/``fd5``), its
   matrices copied into the stack.
 
@@ -315,7 +316,7 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
     """The lower block rows of A and B and the acceleration of points lo:hi, whose
     generalized forces are ``tau`` (M^-1's diagonals into ``minv_diag``); with
     ``second_order``, also M, C_damp and K (module docstring), as :func:`pinlin.linearize`
-    forms them: its kernels and its one product -M^-1 [K, C_damp]."""
+    forms them, and its one product -M^-1 [K, C_damp]."""
     model, data, nv = system.model, system.data, system.nv
     Q, V = arrays["q"], arrays["v"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]

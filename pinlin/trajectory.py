@@ -63,9 +63,9 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
 
     Point k is the model :func:`pinlin.linearize` gives at ``q=q[k], v=v[k], u=u[k]``
     (independent formulation). With analytic derivatives and no steady rotation the stack of
-    an open chain comes from the kernels of :func:`pinlin.linearize` per point written
-    straight into the arrays (:mod:`pinlin.batch`); otherwise from :func:`pinlin.linearize`
-    per point.
+    an open chain comes from Pinocchio's kernels per point (``aba``, ``computeMinverse``,
+    ``computeRNEADerivatives``) written straight into the arrays (:mod:`pinlin.batch`);
+    otherwise from :func:`pinlin.linearize` per point.
 
     A mechanism (loops, mimic couplings, contacts; weld loops, Lie-group joints and a
     standing robot's floating base, and fd3/fd5, point by point) is assembled point by

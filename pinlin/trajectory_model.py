@@ -75,8 +75,8 @@ class TrajectoryModel:
             single model).
         state_names, input_names, output_names: Signal names (n, m, p).
         name: Scene name.
-        info: Metadata: formulation, derivatives, effects, base, points, path ("batch": the
-            kernels of :func:`pinlin.linearize` per point; "per point": :func:`pinlin.linearize`); a
+        info: Metadata: formulation, derivatives, effects, base, points, path ("batch": Pinocchio's
+            kernels per point, :mod:`pinlin.batch`; "per point": :func:`pinlin.linearize`); a
             schedule of rest points (:mod:`pinlin.rest_schedule`) adds ``at_rest`` (True),
             ``notes``, and where they apply ``non_equilibrium_points``,
             ``least_norm_points`` and ``operating_point_sensitivity``.
