@@ -2,8 +2,8 @@
 
 **Worker processes** (``linearize_trajectory(..., workers=k)``): a pool of k processes, kept
 for the life of the program (starting one costs more than a small trajectory) until a call asks
-for another number of workers (the pool of the old number then stops as soon as no call uses
-it: a sweep over workers = 1..8 keeps one pool, not 35 idle processes), shares one
+for another number of workers while it is idle (a sweep over workers = 2..8 keeps one pool,
+not 35 idle processes; threads that use different numbers at once keep theirs), shares one
 memory segment with the caller: the inputs q, v, u and every result array (:class:`Layout`)
 live in a file on ``/dev/shm`` (POSIX shared memory; a temporary folder where there is none or
 it is too small) that each worker maps, fills for its points and unmaps; nothing but the
@@ -33,7 +33,9 @@ out with the pickled scene; each worker process builds the scene's System once (
 cache keyed by the pickled scene) and sends back the chunk's stacked arrays.
 
 Each process runs one Pinocchio workspace per thread (:attr:`pinlin.System.data`); the batch
-kernel makes no BLAS call, so BLAS threads need no limit here.
+kernel's one BLAS call per point is cut into products small enough for OpenBLAS to run on the
+calling thread (:func:`pinlin.batch._product_rows`), so workers do not start BLAS threads
+that would oversubscribe the cores.
 """
 
 from __future__ import annotations
@@ -91,9 +93,8 @@ _scenes: OrderedDict[str, Scene] = OrderedDict()
 _scenes_lock = threading.Lock()
 _pools: dict[int, ProcessPoolExecutor] = {}
 _pools_lock = threading.Lock()
-#: Calls running on the pool of each size, and the size asked for last (:func:`_using_pool`).
+#: Calls running on the pool of each size (:func:`_using_pool`).
 _users: dict[int, int] = {}
-_latest = 0
 
 
 # --------------------------------------------------------------------------------------------
@@ -305,25 +306,19 @@ def _pool_threads(pool: ProcessPoolExecutor) -> list[threading.Thread]:
 
 @contextlib.contextmanager
 def _using_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
-    """The pool of ``workers`` processes for one call (:func:`_pool`). Asking for a size stops
-    the idle pools of other sizes; a pool still in use stops when its last call ends, unless
-    its size is again the one asked for last."""
-    global _latest
+    """The pool of ``workers`` processes for one call (:func:`_pool`). The pools of other
+    sizes that no call is using stop first (their processes end, and their threads, so that
+    the new pool may fork: :func:`_start_method`); one in use is left to its calls."""
     with _pools_lock:
-        _latest = workers
         _users[workers] = _users.get(workers, 0) + 1
         idle = [_pools.pop(w) for w in list(_pools) if w != workers and not _users.get(w)]
-    for old in idle:   # idle: its processes end at once (and its threads, so the next
-        old.shutdown(wait=True)   # pool may fork: :func:`_start_method`)
     try:
+        for old in idle:
+            old.shutdown(wait=True)
         yield _pool(workers)
     finally:
         with _pools_lock:
             _users[workers] -= 1
-            stale = (_pools.pop(workers, None) if not _users[workers] and workers != _latest
-                     else None)
-        if stale is not None:
-            stale.shutdown(wait=True)
 
 
 def _pool(workers: int) -> ProcessPoolExecutor:
@@ -349,10 +344,9 @@ _retired: weakref.WeakSet = weakref.WeakSet()
 def _after_fork_in_child() -> None:
     """A forked child starts with no pool (its parent's executors have no threads here) and
     fresh locks (one held at the fork would never be released here)."""
-    global _pools_lock, _scenes_lock, _finalizer, _retired, _latest
+    global _pools_lock, _scenes_lock, _finalizer, _retired
     _pools.clear()
     _users.clear()
-    _latest = 0
     _pools_lock = threading.Lock()
     _scenes_lock = threading.Lock()
     _finalizer = None
