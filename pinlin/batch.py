@@ -52,7 +52,6 @@ from .chart import PLANAR
 from .conditioning import WARN_CONDITION, trace_condition, warn_if_ill_conditioned
 from .coordinates import FREE_FLYER, SPHERICAL
 from .exceptions import ModelError, PinlinError
-from .mass_bound import diagonal_bound, may_warn, suspect
 from .system import System
 
 #: The per-point second-order stacks of ``second_order=True`` (Bu = S is constant).
@@ -272,9 +271,8 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     """Compute the models of points ``lo:hi`` into ``arrays`` (:meth:`Layout.views` or
     :meth:`Layout.allocate`, zero-filled; inputs q, v, u already there) and screen them:
     ``bad[k]`` = 1 where point k has NaN or inf, or where M(q_k) may be singular to working
-    precision: n sum_i b_i (M^-1)_ii reaches the refusal condition, b the configuration-free
-    bound on diag M of :mod:`pinlin.mass_bound` (an M^-1 not positive on its diagonal
-    included); :func:`check` decides those points exactly (``System.mass_inverse``).
+    precision (:func:`_suspect`); :func:`check` decides those points exactly
+    (``System.mass_inverse``).
 
     Raises:
         PinlinError: per-point path only, from :func:`pinlin.linearize` (a singular mass
@@ -295,28 +293,58 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     tau = generalized_forces(system, Q, V, U, plan)
     kinematic_rows(arrays["A"][lo:hi], V, plan)
     arrays["f0"][lo:hi, :system.nv] = V
-    minv_diag = np.empty((min(BLOCK, hi - lo), system.nv))
-    bound = diagonal_bound(system, Q)
+    diagonals = np.empty((2, min(BLOCK, hi - lo), system.nv))  # diag M, diag M^-1 per point
     limit = system._refuse_limit
     for start in range(lo, hi, BLOCK):  # blocks small enough to screen while in cache
         stop = min(hi, start + BLOCK)
-        _fill_batch(system, arrays, start, stop, plan, tau[start - lo:stop - lo], minv_diag,
+        _fill_batch(system, arrays, start, stop, plan, tau[start - lo:stop - lo], diagonals,
                     options.second_order)
         if system.outputs is not None:
             _fill_outputs(system, arrays, start, stop)
-        diag = minv_diag[:stop - start]
-        refused = suspect(bound, diag, limit)
+        m_diag, minv_diag = diagonals[:, :stop - start]
+        refused = _suspect(m_diag, minv_diag, limit)
         _screen(system, arrays, start, stop, refused,
-                may_warn(bound, diag, WARN_CONDITION) & ~refused)
+                _may_warn(m_diag, minv_diag, WARN_CONDITION) & ~refused)
+
+
+#: A screen flags a point whose estimate comes within this factor of its limit: the batch's
+#: M and M^-1 round differently from those the exact check computes (:func:`check`), so a
+#: point on the edge is left to that check, never passed by the screen alone.
+SCREEN_MARGIN = 0.5
+
+
+def _suspect(m_diag: np.ndarray, minv_diag: np.ndarray, limit: float) -> np.ndarray:
+    """Points (rows: diag M and diag M^-1 per point) where M may be singular to working
+    precision: the first test of :meth:`System.check_mass_inverse`, n sum_i M_ii (M^-1)_ii
+    (>= the condition of M scaled to unit diagonal), does not clear ``limit`` (the refusal
+    condition) by :data:`SCREEN_MARGIN`, or M^-1 is not positive on its diagonal (NaN
+    included)."""
+    n = minv_diag.shape[1]
+    with np.errstate(invalid="ignore", over="ignore"):
+        estimate = n * np.einsum("ij,ij->i", m_diag, minv_diag)
+    return ~((estimate > 0.0) & (estimate < SCREEN_MARGIN * limit)
+             & (minv_diag.min(axis=1, initial=np.inf) > 0.0))
+
+
+def _may_warn(m_diag: np.ndarray, minv_diag: np.ndarray, threshold: float) -> np.ndarray:
+    """Points where the single call's condition estimate tr(M) tr(M^-1) / n
+    (:func:`pinlin.conditioning.trace_condition`) may exceed ``threshold`` (its
+    AccuracyWarning), within :data:`SCREEN_MARGIN`; :func:`check` computes the estimate
+    itself where this says it may."""
+    n = max(minv_diag.shape[1], 1)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return m_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > SCREEN_MARGIN * threshold
 
 
 def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
-                plan: _Plan, tau: np.ndarray, minv_diag: np.ndarray,
+                plan: _Plan, tau: np.ndarray, diagonals: np.ndarray,
                 second_order: bool = False) -> None:
     """The lower block rows of A and B and the acceleration of points lo:hi, whose
-    generalized forces are ``tau`` (M^-1's diagonals into ``minv_diag``); with
+    generalized forces are ``tau`` (the diagonals of M and M^-1 into ``diagonals[0]`` and
+    ``[1]``); with
     ``second_order``, also M, C_damp and K (module docstring), as :func:`pinlin.linearize`
-    forms them, and its one product -M^-1 [K, C_damp]."""
+    forms them, and its one product -M^-1 [K, C_damp]. A singular M gives NaN or inf here
+    without a floating-point warning: :func:`check` names the point."""
     model, data, nv = system.model, system.data, system.nv
     Q, V = arrays["q"], arrays["v"]
     A, B, f0 = arrays["A"], arrays["B"], arrays["f0"]
@@ -324,28 +352,33 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
     cols = system.actuated_columns
     ks, cs = plan.spring_cols, plan.damping_cols
     stiffness, damping = system.stiffness[ks], system.damping[cs]
-    dg = minv_diag[:hi - lo]
+    m_diag, minv_diag = diagonals[:, :hi - lo]
     KC = np.empty((nv, 2 * nv))  # -[K, C_damp] of one point (negation is exact)
     negK, negC = KC[:, :nv], KC[:, nv:]
+    rows = _product_rows(nv)
     if second_order:
         M, C, K = arrays["M"], arrays["C_damp"], arrays["K"]
-    for k in range(lo, hi):
-        acc[k] = pin.aba(model, data, Q[k], V[k], tau[k - lo], WORLD)
-        Minv = pin.computeMinverse(model, data)  # from aba's WORLD-convention workspace
-        Bv[k] = Minv[:, cols]
-        dg[k - lo] = Minv.diagonal()
-        dq, dv, M_k = pin.computeRNEADerivatives(model, data, Q[k], V[k], acc[k])
-        np.negative(dq, out=negK)
-        np.negative(dv, out=negC)
-        if ks.size:  # springs act on 1-DoF joints: d(difference)/d(dq) = 1
-            KC[ks, ks] -= stiffness
-        if cs.size:
-            KC[cs, nv + cs] -= damping
-        np.matmul(Minv, KC, out=lower[k])  # computeRNEADerivatives leaves Minv
-        if second_order:
-            np.negative(negK, out=K[k])
-            np.negative(negC, out=C[k])
-            M[k] = M_k
+    with np.errstate(invalid="ignore", over="ignore"):
+        for k in range(lo, hi):
+            acc[k] = pin.aba(model, data, Q[k], V[k], tau[k - lo], WORLD)
+            Minv = pin.computeMinverse(model, data)  # from aba's WORLD-convention workspace
+            Bv[k] = Minv[:, cols]
+            minv_diag[k - lo] = Minv.diagonal()
+            dq, dv, M_k = pin.computeRNEADerivatives(model, data, Q[k], V[k], acc[k])
+            m_diag[k - lo] = M_k.diagonal()
+            np.negative(dq, out=negK)
+            np.negative(dv, out=negC)
+            if ks.size:  # springs act on 1-DoF joints: d(difference)/d(dq) = 1
+                KC[ks, ks] -= stiffness
+            if cs.size:
+                KC[cs, nv + cs] -= damping
+            out = lower[k]  # computeRNEADerivatives leaves Minv as it was
+            for r in rows:
+                np.matmul(Minv[r], KC, out=out[r])
+            if second_order:
+                np.negative(negK, out=K[k])
+                np.negative(negC, out=C[k])
+                M[k] = M_k
     if not second_order:
         return
     below = np.tril_indices(nv, -1)  # Pinocchio 4 fills both triangles, older ones the upper
@@ -353,6 +386,20 @@ def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: i
     Mb[:, below[0], below[1]] = Mb[:, below[1], below[0]]
     if not cs.size:  # no velocity terms at a point at rest without damping: C_damp = 0 exactly
         C[lo:hi][~V[lo:hi].any(axis=1)] = 0.0
+
+
+#: Multiply-adds of one matrix product below which OpenBLAS runs it on the calling thread
+#: (its default threshold: m n k < 65536 * 4; half of that, for margin).
+ONE_THREAD_PRODUCT = 131072
+
+
+def _product_rows(nv: int) -> list[slice]:
+    """Row blocks of the product M^-1 [K, C_damp] (nv x nv times nv x 2nv), each small enough
+    for OpenBLAS to run on the calling thread: one block up to nv = 40, more beyond. A bigger
+    product starts OpenBLAS's threads, which in worker processes oversubscribe the cores
+    (nv = 90, two workers on two cores: products 2.5x slower)."""
+    height = max(1, ONE_THREAD_PRODUCT // max(1, 2 * nv * nv))
+    return [slice(r, min(r + height, nv)) for r in range(0, max(nv, 1), height)]
 
 
 def _screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,

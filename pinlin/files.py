@@ -72,9 +72,10 @@ def _follow_link(path: Path) -> Path:
 #: The first bytes of a gain file (:mod:`pinlin.gain_files`).
 GAIN_MARKER = b"# pinlin gain:"
 #: The first bytes of a time history in CSV (``pinlin simulate|response --out h.csv``): a
-#: comment line, so that the history also reads as a states file (``t,q:...,v:...``); a
-#: user's states file, which has the same header, is then never taken for one and replaced.
-HISTORY_MARKER = b"# pinlin history"
+#: user's states file, whose header (``t,q:...,v:...``) a history's may equal, is then never
+#: taken for one and replaced, nor a history read as a states file (its q: and v: columns are
+#: deviations from the operating point).
+HISTORY_MARKER = b"# pinlin history:"
 #: How the files pinlin writes begin, by suffix: an existing non-empty file at an output
 #: path is replaced only if it begins so (an earlier result), never a file of another kind
 #: (a user's notes named report.html, a link to a system file).

@@ -40,7 +40,7 @@ from typing import IO, Any
 import numpy as np
 
 from .exceptions import ModelFileError, PinlinError
-from .files import as_path, check_file_target, write_atomic
+from .files import HISTORY_MARKER, as_path, check_file_target, write_atomic
 
 # The readers of single-model files do the checking (npy headers, no pickles, MATLAB cells).
 from .model_files import _READERS, _check_npy_headers, _read_names, jsonable
@@ -210,6 +210,11 @@ def _read_csv_states(path: Path, raw: bytes, system: System
                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None,
                                 np.ndarray | None]:
     text = csv_text(path, raw)
+    if text.startswith(HISTORY_MARKER.decode()):
+        raise ModelFileError(path, "is a time history pinlin wrote (its first line says so): "
+                                   "its q: and v: columns are deviations from an operating "
+                                   "point, not the configurations and velocities of a states "
+                                   "file")
     lines = _content_lines(text)
     if not lines:
         raise ModelFileError(path, "empty: expected a header line naming the columns, then "

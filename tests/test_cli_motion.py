@@ -307,8 +307,10 @@ def test_trajectory_out_over_a_time_history_is_refused_before_the_work(capfd, tm
 
 def test_a_history_replaces_only_a_history(capfd, tmp_path):
     """`--out h.csv` replaces a time history pinlin wrote (its first line says so), never a
-    user's states file, whose header (t, q:..., v:...) a history shares. The history reads
-    back as a states file: its marker is a comment."""
+    user's states file, whose header (t, q:..., v:...) a history shares. A history is not
+    read as a states file either, even cut down to its q: columns: those are deviations from
+    the operating point (ur5_arm's history from rest at its q0 read as the configurations
+    [0, ..., 0])."""
     mine = tmp_path / "plan.csv"
     plan = "t,q:hinge,v:hinge,u:hinge\n0,0.1,0,0\n1,0.2,0,0\n"
     mine.write_text(plan)
@@ -321,12 +323,12 @@ def test_a_history_replaces_only_a_history(capfd, tmp_path):
                            "--out", str(history))
         assert code == 0, err
     rows = history.read_text().splitlines()
-    assert rows[0].startswith("# pinlin history") and len(rows) == 2 + 5
+    assert rows[0].startswith("# pinlin history: ") and len(rows) == 2 + 5
     states = tmp_path / "states.csv"
-    lines = [",".join(r.split(",")[:2]) for r in rows]   # t, q:hinge: a schedule
-    states.write_text("\n".join(lines) + "\n")
+    states.write_text("\n".join(",".join(r.split(",")[:2]) for r in rows) + "\n")  # t, q
     code, _, err = run(capfd, "trajectory", "pendulum", str(states), "--out",
                        str(tmp_path / "m.npz"))
-    assert code == 0, err
+    assert code == 2 and "states.csv" in err and "is a time history" in err, err
+    assert not (tmp_path / "m.npz").exists()
     code, _, err = run(capfd, "simulate", "pendulum", "--t-end", "0.1", "--out", str(states))
     assert code == 0, err      # a history (marker kept), edited: still pinlin's to replace

@@ -80,6 +80,7 @@ SCENES = {
     "ur5": lambda: pinlin.Scene.from_robot("ur5"),
     "solo12": lambda: pinlin.Scene.from_robot("solo12"),
     "talos": lambda: pinlin.Scene.from_robot("talos"),
+    "talos_full": lambda: pinlin.Scene.from_robot("talos_full"),  # nv = 50: blocked product
     "ur5_arm": lambda: pinlin.Scene.load(URDF_DIR / "ur5_arm.toml"),  # springs, damping, frame
     "rotating": lambda: pinlin.Scene.load(URDF_DIR / "rotating_double_pendulum.toml"),
 }
@@ -100,7 +101,8 @@ def _assert_same_model(got: pinlin.LinearModel, ref: pinlin.LinearModel) -> None
 
 
 @pytest.mark.parametrize("name, path", [("ur5", "batch"), ("solo12", "batch"),
-                                        ("talos", "batch"), ("ur5_arm", "batch"),
+                                        ("talos", "batch"), ("talos_full", "batch"),
+                                        ("ur5_arm", "batch"),
                                         ("rotating", "per point")])
 def test_each_point_is_the_model_linearize_gives(name, path):
     scene = SCENES[name]()

@@ -397,6 +397,17 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '                return kind in (None, "gain")',
         '                return True',
         "a time history may replace a gain file"),
+    'batch_screen_ignores_condition': (
+        'pinlin/batch.py',
+        '    return ~((estimate > 0.0) & (estimate < SCREEN_MARGIN * limit)',
+        '    return ~((estimate > 0.0) & (estimate < 1e300)',
+        "the batch's mass screen flags only a non-positive diagonal of M^-1, not a condition "
+        "that reaches the refusal limit"),
+    'batch_screen_never_warns': (
+        'pinlin/batch.py',
+        'm_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > SCREEN_MARGIN * threshold',
+        'm_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > 1e300',
+        "the batch never flags a point for the single call's ill-conditioning warning"),
     'history_without_marker': (
         'pinlin/cli_histories.py',
         '        lines = [marker, ",".join(["t", *names])]',
