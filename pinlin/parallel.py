@@ -437,7 +437,8 @@ def _run_pool(pool: ProcessPoolExecutor, blob: bytes, key: str, segment: _Segmen
     N = layout.points
     futures = {pool.submit(_segment_task, blob, key, segment.path, segment.size, layout, lo,
                            hi, options, os.getpid()): (lo, hi) for lo, hi in _chunks(N, chunk)}
-    _collect(futures, N, progress, lambda result, lo, hi: _raise_if(*result))
+    _collect(futures, N, progress, lambda result, lo, hi: _raise_if(*result),
+             cancel_on_interrupt=False)  # an interrupt ends the pool (_abandon)
 
 
 def _raise_if(error: tuple | None, recorded: list) -> None:
@@ -448,10 +449,13 @@ def _raise_if(error: tuple | None, recorded: list) -> None:
 
 def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
              progress: Callable[[int, int], None] | None,
-             take: Callable[[Any, int, int], None]) -> None:
+             take: Callable[[Any, int, int], None], cancel_on_interrupt: bool = True) -> None:
     """Wait for the tasks in completion order and hand each result to ``take``. An error
     cancels the tasks of later points; the error of the earliest point is raised once the
-    tasks before it are done (the same point whatever the order of completion)."""
+    tasks before it are done (the same point whatever the order of completion). An interrupt
+    (Ctrl-C, SystemExit) cancels the tasks left unless ``cancel_on_interrupt`` is False: a
+    process pool the caller then ends fails them itself, and Python 3.11's pool, failing a
+    cancelled one, printed an InvalidStateError traceback from its thread."""
     done, first = 0, None  # first: (lo, error) of the earliest failed chunk
     try:
         for future in as_completed(futures):
@@ -469,9 +473,10 @@ def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
             done += hi - lo
             if progress is not None:
                 progress(done, total)
-    except BaseException:
-        for future in futures:
-            future.cancel()
+    except BaseException as exc:
+        if cancel_on_interrupt or not isinstance(exc, (KeyboardInterrupt, SystemExit)):
+            for future in futures:
+                future.cancel()
         raise
     if first is not None:
         raise first[1]
