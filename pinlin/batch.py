@@ -320,6 +320,8 @@ def _suspect(m_diag: np.ndarray, minv_diag: np.ndarray, limit: float) -> np.ndar
     condition) by :data:`SCREEN_MARGIN`, or M^-1 is not positive on its diagonal (NaN
     included)."""
     n = minv_diag.shape[1]
+    if not n:   # no coordinate: nothing to invert
+        return np.zeros(minv_diag.shape[0], dtype=bool)
     with np.errstate(invalid="ignore", over="ignore"):
         estimate = n * np.einsum("ij,ij->i", m_diag, minv_diag)
     return ~((estimate > 0.0) & (estimate < SCREEN_MARGIN * limit)
