@@ -200,13 +200,17 @@ def check_file_target(path: str | Path, what: str = "write", kind: str | None = 
     Raises:
         ArgumentError: ``path`` is not a path.
         ModelFileError: it names a folder, its folder does not exist, a component of its
-            folder is a file, or it is an existing file of another kind
-            (:func:`check_replaceable`).
+            folder is a file, it is a link to a file that does not exist, or it is an existing
+            file of another kind (:func:`check_replaceable`).
     """
     path = as_path(path)
     target = _follow_link(path)
     if target.is_dir():
         raise ModelFileError(path, f"cannot {what}: it is a folder, expected a file name")
+    if target != path and not os.path.lexists(target):
+        raise ModelFileError(path, f"cannot {what}: it is a link to '{target}', which does not "
+                                   "exist; pinlin does not create a file through a link: "
+                                   "remove the link or choose another name")
     check_replaceable(path, target, kind)
     folder = _folder_of(target)
     if not folder.is_dir():

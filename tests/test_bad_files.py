@@ -730,21 +730,25 @@ def test_report_names_stay_inside_the_output_folder():
     ("linearize", "double_pendulum", "--out", "{out}.npz"),
     ("linearize", "double_pendulum", "--out", "{out}.json"),
 ], ids=["report", "mjcf", "png", "gif", "npz", "json"])
-@pytest.mark.parametrize("how", ["file", "link"])
+@pytest.mark.parametrize("how", ["file", "link", "dangling_link"])
 def test_outputs_never_replace_a_file_of_another_kind(args, how, capfd, tmp_path):
     """A user's notes at an output name, or a link there to some other file, are refused
-    before any work and left untouched; an earlier result of the same kind is replaced."""
+    before any work and left untouched; an earlier result of the same kind is replaced. A
+    link to a file that does not exist (notes.txt to be) was written through: pinlin created
+    the link's target, whatever its name."""
     notes = tmp_path / "notes.txt"
-    notes.write_text("my notes\n")
     argv = [a.format(out=tmp_path / "out") for a in args]
     target = Path(argv[-1])
     if how == "file":
         target.write_text("my notes\n")
     else:
         target.symlink_to(notes)
+    if how != "dangling_link":
+        notes.write_text("my notes\n")
     before = snapshot(tmp_path)
     code, _, err = cli(capfd, *argv)
-    assert_refused(code, err, target.name, "pinlin does not replace it")
+    assert_refused(code, err, target.name, "pinlin does not create a file through a link"
+                   if how == "dangling_link" else "pinlin does not replace it")
     assert snapshot(tmp_path) == before
     target.unlink()
     for _ in range(2):       # written, then its own earlier result replaced
