@@ -309,6 +309,12 @@ def test_time_step_must_resolve_the_fastest_mode(tmp_path, capsys):
         assert f"use dt < {limit:.3g} s" in err and not out.exists()
     assert main(["export-mjcf", "double_pendulum", "-o", str(out), "--dt",
                  repr(0.9 * limit)]) == 0
+    out.unlink()
+    for dt in ("1e-300", "9e-10"):   # stable, but 1e9 steps and more per simulated second
+        assert main(["export-mjcf", "double_pendulum", "-o", str(out), "--dt", dt]) == 2
+        err = capsys.readouterr().err
+        assert "argument '--dt'" in err and "expected at least 1e-09 s" in err
+        assert not out.exists()
 
 
 @pytest.mark.parametrize("name", ["ur5_arm", "four_bar", "solo12_standing"])
