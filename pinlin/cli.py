@@ -27,6 +27,7 @@ from .cli_format import (
     options_named,
     plural,
     print_operating_point,
+    scene_of,
 )
 from .cli_motion import add_commands
 from .cli_pictures import add_commands as add_picture_commands
@@ -97,12 +98,11 @@ def _cmd_linearize(args: argparse.Namespace) -> int:
     from .linear_model import LinearModel  # noqa: F401  (import cost paid before the work)
     from .linearization import linearize
     from .modal import modal
-    from .scene import Scene
 
     out = Path(args.out) if args.out else None
     if out is not None:
         check_out(out, (".npz", ".mat", ".json"))
-    scene = Scene.resolve(args.target)
+    scene = scene_of(args.target)
     with options_named({"alpha": "--alpha", "mu": "--mu", "omega": "--omega",
                         "basis": "--basis", "step": "--step",
                         "formulation": "--formulation", "derivatives": "--derivatives"}):
@@ -157,7 +157,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     command = "pinlin bench" + "".join(f" {s}" for s in args.systems)
     if args.repeats != 5:
         command += f" --repeats {args.repeats}"
-    run(systems, args.repeats, args.out_dir, not args.no_progress, command)
+    with options_named({"name": "SYSTEM", "names": "SYSTEM", "target": "SYSTEM"}):
+        run(systems, args.repeats, args.out_dir, not args.no_progress, command)
     return 0
 
 
@@ -171,13 +172,15 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         raise ArgumentError("--all", "validates every bundled scene and robot; name systems "
                                      "or give --all, not both")
     folder_name(args.out_dir, "--out-dir")
-    names = targets(args.all, list(args.targets))
     command = "pinlin validate" + (" --all" if args.all else "") + "".join(
         f" {t}" for t in args.targets)
     # Named systems must all exist (else exit 2, nothing written) and merge into the index;
     # --all rebuilds the index and reports a system pinlin cannot build as a row.
-    results = run(names, args.out_dir, not args.no_progress, command, strict=not args.all,
-                  merge=not args.all)
+    with options_named({"names": "SCENE_OR_ROBOT", "name": "SCENE_OR_ROBOT",
+                        "target": "SCENE_OR_ROBOT"}):
+        names = targets(args.all, list(args.targets))
+        results = run(names, args.out_dir, not args.no_progress, command,
+                      strict=not args.all, merge=not args.all)
     for r in results:
         print(f"{r.name:28s} {r.status:15s} {r.reason}")
     failed = [r.name for r in results if r.failed]
@@ -191,13 +194,12 @@ def _cmd_export_mjcf(args: argparse.Namespace) -> int:
     from .files import check_file_target, write_text_atomic
     from .linearization import linearize, operating_point
     from .mjcf import build, check_resolved, check_time_step, to_xml
-    from .scene import Scene
 
     dt = check_time_step(args.dt, "--dt")
     out = Path(args.output)
     if out.suffix.lower() != ".xml":
         raise ModelFileError(out, "expected an .xml file for MJCF")
-    scene = Scene.resolve(args.target)
+    scene = scene_of(args.target)
     inputs = {Path(p).resolve() for p in (scene.source, scene.system.urdf_path) if p}
     if out.resolve() in inputs:
         raise ModelFileError(out, "is an input of the scene (its scene file or URDF); choose "

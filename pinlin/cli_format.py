@@ -31,6 +31,15 @@ def options_named(options: dict[str, str]) -> Iterator[None]:
         raise ArgumentError(options[exc.argument], exc.reason) from None
 
 
+def scene_of(target: str):
+    """:meth:`pinlin.Scene.resolve` of the command line's SCENE_OR_ROBOT, its errors naming
+    that argument (the library's name for it is ``target``)."""
+    from .scene import Scene
+
+    with options_named({"target": "SCENE_OR_ROBOT", "name": "SCENE_OR_ROBOT"}):
+        return Scene.resolve(target)
+
+
 def mode_rows(modes, numbers: list[int] | None, option: str) -> list[int] | None:
     """Eigenvalue indices of the mode-table rows ``numbers`` (1 = first row, as printed) of a
     :class:`pinlin.ModalAnalysis`; a row named twice or beyond the table is refused."""

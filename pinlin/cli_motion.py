@@ -11,7 +11,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_format import check_out, file_name, folder_name, mode_rows, options_named, plural
+from .cli_format import (
+    check_out,
+    file_name,
+    folder_name,
+    mode_rows,
+    options_named,
+    plural,
+    scene_of,
+)
 from .cli_histories import (
     assignments,
     check_history_out,
@@ -92,7 +100,6 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
     import time
 
     from .exceptions import ShapeError
-    from .scene import Scene
     from .trajectory import linearize_trajectory
     from .trajectory_files import MODEL_FORMATS, csv_location, read_states
 
@@ -111,7 +118,7 @@ def _cmd_trajectory(args: argparse.Namespace) -> int:
         raise ArgumentError("--second-order", "M, C_damp, K, Bu describe the continuous "
                                               "models; a discretized model (--dt) has none: "
                                               "leave out one of the two")
-    scene = Scene.resolve(args.target)
+    scene = scene_of(args.target)
     q, v, u, t = read_states(args.states, scene.system)
     client = executor = None
     if args.dask is not None:
@@ -216,12 +223,11 @@ def _loop_line(path: str, model) -> str:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .formulations.constrained import constrained_effects
     from .linearization import linearize
-    from .scene import Scene
     from .simulation import simulate
 
     t = times(args)
     out, plot = check_history_out(args.out), check_plot(args.plot)
-    scene = Scene.resolve(args.target)
+    scene = scene_of(args.target)
     model = linearize(scene)
     x0 = initial_state(model, args.x0)
     gain = _gain(args.feedback, model)
@@ -283,14 +289,13 @@ def _signals(args: argparse.Namespace, model):
 def _cmd_response(args: argparse.Namespace) -> int:
     from .linearization import linearize
     from .response import response
-    from .scene import Scene
 
     t = times(args)
     if args.nonlinear and (args.step or args.impulse or args.harmonic):
         raise ArgumentError("--nonlinear", "compares free responses (--x0 only); inputs "
                                            "are not simulated nonlinearly from the CLI")
     out, plot = check_history_out(args.out), check_plot(args.plot)
-    scene = Scene.resolve(args.target)
+    scene = scene_of(args.target)
     model = linearize(scene)
     x0 = initial_state(model, args.x0)
     u = _signals(args, model)
@@ -337,14 +342,13 @@ def _cmd_validity(args: argparse.Namespace) -> int:
     from .files import check_file_target, check_folder_target, make_folder
     from .linearization import linearize
     from .modal import modal
-    from .scene import Scene
     from .validity import validity
     from .validity_report import plot_paths
 
     folder = None
     if args.out_dir is not None:
         folder = check_folder_target(folder_name(args.out_dir, "--out-dir"), "--out-dir")
-    scene = Scene.resolve(args.target)
+    scene = scene_of(args.target)
     if folder is not None and folder.is_dir():    # a file there is refused before the run
         for path in plot_paths(folder, scene.name):
             check_file_target(path)

@@ -6,16 +6,15 @@ from __future__ import annotations
 
 import argparse
 
-from .cli_format import file_name, mode_rows, plural
+from .cli_format import file_name, mode_rows, plural, scene_of
 from .exceptions import ArgumentError
 
 
 def _linearize(args: argparse.Namespace):
     from .linearization import linearize
     from .modal import modal
-    from .scene import Scene
 
-    scene = Scene.resolve(args.target)
+    scene = scene_of(args.target)
     model = linearize(scene, allow_non_equilibrium=True if args.allow_non_equilibrium
                       else None)
     return scene, model, modal(model)

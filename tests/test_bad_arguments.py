@@ -193,3 +193,22 @@ def test_bad_option_objects_name_their_field(make, argument):
     with pytest.raises(pinlin.ArgumentError) as info:
         make()
     assert info.value.argument == argument
+
+
+@pytest.mark.parametrize("argv, argument", [
+    (["linearize", ""], "SCENE_OR_ROBOT"),
+    (["simulate", "", "--t-end", "1"], "SCENE_OR_ROBOT"),
+    (["modes", ""], "SCENE_OR_ROBOT"),
+    (["validate", "pendulum", ""], "SCENE_OR_ROBOT"),
+    (["bench", ""], "SYSTEM"),
+])
+def test_an_empty_system_name_is_named_as_the_command_line_calls_it(argv, argument, capfd,
+                                                                    tmp_path, monkeypatch):
+    """The library's names for these arguments ('target', 'names', 'name') are not what the
+    command line calls them."""
+    monkeypatch.chdir(tmp_path)
+    code = main(argv + (["--out-dir", str(tmp_path / "r")] if argv[0] in ("validate", "bench")
+                        else []))
+    _, err = capfd.readouterr()
+    assert code == 2 and err.startswith(f"pinlin: error: argument '{argument}': ")
+    assert err.count("\n") == 1 and not (tmp_path / "r").exists()
