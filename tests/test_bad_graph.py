@@ -573,3 +573,22 @@ def test_check_applies_the_domain_rules_to_an_edited_graph():
     h.domain = "nope"
     with pytest.raises(ArgumentError, match="argument 'domain': expected one of"):
         h.linearize()
+
+
+def test_too_many_nonlinear_elements_are_refused_before_the_search(tmp_path, capfd):
+    """A ladder of 101 capacitors and cubic resistors: the equilibrium search (nested Newton,
+    difference Jacobians) took minutes from 300 such rungs; more than 100 are refused at
+    once, naming the count."""
+    from conftest import deadline
+
+    def ladder(n: int) -> str:
+        text = branch("Is", "through_source", "g", "n0", input="1.0")
+        for i in range(n):
+            text += (branch(f"C{i}", "A", f"n{i}", "g", value="1.0")
+                     + branch(f"R{i}", "D", f"n{i}", f"n{i + 1}",
+                              relation="{ kind = 'power', coefficient = 1.0, exponent = 3.0 }"))
+        return text + branch("Rend", "D", f"n{n}", "g", value="1.0")
+
+    with deadline(10):
+        assert_bad_file(tmp_path, capfd, "ladder", ladder(101), "field 'branches'",
+                        "101 nonlinear elements", "at most 100")

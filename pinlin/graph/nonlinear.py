@@ -368,9 +368,22 @@ def _with_unit_values(graph):
     return g
 
 
+#: Most nonlinear elements a graph may have. The equilibrium search nests Newton on the
+#: dissipative primaries inside Newton on the states, both with difference Jacobians: its time
+#: grows about as the cube of the count (a ladder of 100 capacitors and cubic resistors: 13 s;
+#: of 300: not done after 5 minutes).
+MAX_NONLINEAR = 100
+
+
 def linearize_nonlinear(graph, *, outputs: Sequence[str] | None, combine: bool,
                         u0: Mapping[str, float] | None, x0: Sequence[float] | None):
     """Equilibrium and linear model about it."""
+    count = sum(b.nonlinear for b in graph.branches)
+    if count > MAX_NONLINEAR:
+        raise GraphError(graph.source, "branches", f"{count} nonlinear elements; pinlin "
+                         f"linearizes graphs with at most {MAX_NONLINEAR} (its equilibrium "
+                         "search takes time growing as the cube of their count: a ladder of "
+                         "100 took 13 s, one of 300 did not end in 5 minutes)")
     # linear excess storage combined first (unless combine=False): the equilibrium is then
     # isolated; a combined copy keeps the graph's guess
     work, combined, aliases, _ = combine_excess(graph, combine)
