@@ -592,3 +592,18 @@ def test_too_many_nonlinear_elements_are_refused_before_the_search(tmp_path, cap
     with deadline(10):
         assert_bad_file(tmp_path, capfd, "ladder", ladder(101), "field 'branches'",
                         "101 nonlinear elements", "at most 100")
+
+
+def test_an_error_about_a_combined_element_names_a_branch_of_the_file(tmp_path, capfd):
+    """Linear springs K0 and K4 in parallel are combined into 'K0+K4' before a nonlinear
+    spring beside them is found in excess: the field named 'branches.K0+K4', which is not in
+    the file; it now names K0 (the message still lists the combined element)."""
+    text = (branch("Ts", "through_source", "g", "1", input="0.1")
+            + branch("J", "A", "1", "g", value="0.05")
+            + branch("K0", "T", "1", "g", value="2.0")
+            + branch("K4", "T", "1", "g", value="3.0")
+            + branch("Kn", "T", "1", "g",
+                     relation="{ kind = 'arcsin', scale = 0.981 }")
+            + branch("B", "D", "1", "g", value="5.0"))
+    assert_bad_file(tmp_path, capfd, "combined", text, "field 'branches.K0'", "K0+K4",
+                    "excess energy storage")

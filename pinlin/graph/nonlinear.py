@@ -179,6 +179,12 @@ def _slope(graph, branch: Branch, x: float, context: str = "") -> float:
                                           "kink or an infinite slope); no linear model there")
 
 
+def _field(name: str) -> str:
+    """The file's field of branch ``name``; an element pinlin combined (``K1+K2``, not in the
+    file) is named by its first branch."""
+    return f"branches.{name.split('+')[0]}"
+
+
 class NonlinearGraph:
     """f(x, u) of a graph with nonlinear elements, on its normal tree."""
 
@@ -189,7 +195,7 @@ class NonlinearGraph:
             group = excess[0]
             kind = "T-type elements in parallel" if graph.branch(group[0]).type == "T" else \
                 "A-type elements in series"
-            raise GraphError(graph.source, f"branches.{group[0]}", f"excess energy storage "
+            raise GraphError(graph.source, _field(group[0]), f"excess energy storage "
                              f"({', '.join(group)}: {kind}) in a graph with nonlinear "
                              "elements: the split of the equilibrium between them is "
                              "undetermined; replace them by one element (linear ones are "
@@ -199,7 +205,7 @@ class NonlinearGraph:
         self.branches = graph.branches
         if self.form.d:
             names = [graph.branches[k].name for k in self.form.d]
-            raise GraphError(graph.source, f"branches.{names[0]}", "nonlinear graphs with "
+            raise GraphError(graph.source, _field(names[0]), "nonlinear graphs with "
                                                                    "dependent energy storage "
                                                                    f"({', '.join(names)}) are "
                                                                    "not supported")
@@ -308,7 +314,7 @@ class NonlinearGraph:
                          f"'{self.graph.name}': no equilibrium found from "
                          f"{_point(self.states, guess)} with inputs {self._inputs(u)} (Newton "
                          f"stopped at {_point(self.states, x)} with residual "
-                         f"{np.array2string(np.asarray(sigma), precision=3)}: "
+                         f"{np.array2string(np.asarray(sigma), precision=3, threshold=8)}: "
                          f"{clip(sol.message)}); give a closer [operating_point] guess, or "
                          "the inputs admit no equilibrium")
 
@@ -353,8 +359,16 @@ def _number(value: object) -> float | None:
     return x if math.isfinite(x) and abs(x) <= VALUE_MAX else None
 
 
+#: States named in a message's point; the rest are counted.
+_POINT_SHOWN = 6
+
+
 def _point(states: Sequence[str], x: np.ndarray) -> str:
-    return "{" + ", ".join(f"{s} = {v:.6g}" for s, v in zip(states, x, strict=False)) + "}"
+    """``{name = value, ...}`` of the first :data:`_POINT_SHOWN` states (a message stays one
+    readable line for a graph of many states)."""
+    pairs = [f"{s} = {v:.6g}" for s, v in zip(states[:_POINT_SHOWN], x, strict=False)]
+    more = len(states) - _POINT_SHOWN
+    return "{" + ", ".join(pairs) + (f", ... ({more} more)" if more > 0 else "") + "}"
 
 
 def _with_unit_values(graph):
