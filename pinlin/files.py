@@ -286,11 +286,15 @@ def check_ours(path: str | Path, marker: str | bytes) -> None:
             start = fh.read(len(head))
     except OSError as exc:
         raise ModelFileError(path, f"cannot read it: {exc.strerror or exc}") from None
-    if start != head or not _pinlin_content(path, path.suffix.lower()):
+    if start != head:
         shown = marker if isinstance(marker, str) else marker.decode("latin-1").strip("\x89")
-        raise ModelFileError(path, f"exists and was not written by pinlin (it does not start "
-                                   f"with \"{shown}\"); pinlin does not overwrite it: move it "
-                                   "or choose another folder")
+        why = f"it does not start with \"{shown}\""
+    elif not _pinlin_content(path, path.suffix.lower()):
+        why = "it lacks the mark pinlin leaves in its files"
+    else:
+        return
+    raise ModelFileError(path, f"exists and was not written by pinlin ({why}); pinlin does "
+                               "not overwrite it: move it or choose another folder")
 
 
 def _create_temp(target: Path) -> Path:

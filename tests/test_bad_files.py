@@ -1125,3 +1125,26 @@ def test_an_operating_point_whose_a_does_not_match_v_is_refused():
     op = dataclasses.replace(model.operating_point, a=np.zeros(3))
     with pytest.raises(pinlin.ShapeError, match="operating_point.a has 3 entries, expected v's 2"):
         dataclasses.replace(model, operating_point=op)
+
+
+def test_a_real_png_of_the_users_is_refused_for_what_it_lacks(tmp_path):
+    """A PNG the user made begins as every PNG does: the refusal said it 'does not start with
+    "PNG"', which it does; it lacks pinlin's mark."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pinlin.files import check_ours
+    from pinlin.validation_report import PNG_MARKER
+
+    mine = tmp_path / "mine.png"
+    fig = plt.figure(figsize=(1, 1))
+    fig.savefig(mine)
+    plt.close(fig)
+    with pytest.raises(pinlin.ModelFileError, match="lacks the mark pinlin leaves"):
+        check_ours(mine, PNG_MARKER)
+    text = tmp_path / "notes.png"
+    text.write_text("my notes\n")
+    with pytest.raises(pinlin.ModelFileError, match="does not start with"):
+        check_ours(text, PNG_MARKER)
