@@ -226,6 +226,17 @@ def test_arcsin_outside_its_domain_at_the_equilibrium(tmp_path, capfd):
                     "at the equilibrium")
 
 
+def test_arcsin_at_the_edge_of_its_domain_at_the_equilibrium(tmp_path, capfd):
+    """A torque of exactly m g l = 0.981 N m: the equilibrium lies on the edge of the arcsin
+    relation's domain, where the slope is infinite. The message said the relation was
+    evaluated 'at 0.981, outside its domain |x| <= 0.981' (the stencil beside it, printed to
+    six digits)."""
+    error = assert_bad_file(tmp_path, capfd, "edge", PENDULUM.format(torque="0.981"),
+                            "field 'branches.K.relation'", "no slope at f = 0.981",
+                            "lies on the edge of its domain")
+    assert "outside its domain" not in str(error)
+
+
 def test_arcsin_damper_with_no_equilibrium(tmp_path, capfd):
     """f = asin(v) never reaches 5: the search leaves the domain and says so."""
     assert_bad_file(tmp_path, capfd, "asin", tank("{ kind = 'arcsin', scale = 1.0 }", "5.0"),

@@ -148,9 +148,12 @@ def _slope(graph, branch: Branch, x: float, context: str = "") -> float:
         try:                   # a stencil 8, 64, ... times narrower
             level = max(center, *(abs(fn(x + k * h)) for k in (-2, -1, 1, 2)))
             break
-        except GraphError:
-            if attempt == 6:
-                raise
+        except GraphError as exc:
+            if attempt == 6:   # x is the relation's own point: x at the edge of its domain
+                raise GraphError(graph.source, where, f"no slope at {var} = {x:.6g}{context}: "
+                                 f"the relation cannot be evaluated within {2 * h:.2g} of "
+                                 "that point, which lies on the edge of its domain; no linear "
+                                 "model exists there") from exc
             h /= 8
     with np.errstate(all="ignore"):
         estimates = [derivative(fn, x, h)]
