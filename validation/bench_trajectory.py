@@ -307,7 +307,8 @@ def report(results: dict, args: argparse.Namespace) -> str:
         "B dense), which the OS hands out zeroed: the floor row measures that cost with the "
         "kernels' own outputs written in and nothing else. What `linearize_trajectory` adds on "
         f"top ({pp['batch_ratio'] - pp['floor_ratio']:+.3f}) is the kinematic rows, f0, the "
-        "diagonal of M^-1, the screening for NaN and the checks of the input arrays. An "
+        "diagonals of M and M^-1 (the mass check), the screening for NaN and the checks of "
+        "the input arrays. An "
         "optimizer that re-linearizes the same horizon (iLQR, DDP) passes the previous result "
         "as `out=` (`pinlin.trajectory_buffers`): the pages are then handed out once, and the "
         "last two rows compare that call with the floor loop on stacks written before.",
