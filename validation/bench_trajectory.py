@@ -387,8 +387,8 @@ NOTES = """## Reading these figures
   outputs in Pinocchio's cache-resident workspace; the batch must put 65 kB per point into
   fresh memory, which the OS zeroes on first touch. The floor row (the batch's kernels
   writing their outputs into fresh stacks) shows that cost alone. Counted in instructions,
-  which no other process can disturb, the batch executes 0.89x the instructions of the
-  `computeABADerivatives` loop (494 k against 553 k per point, N = 1000; valgrind's
+  which no other process can disturb, the batch executes 0.91x the instructions of the
+  `computeABADerivatives` loop (501 k against 552 k per point, N = 1000; valgrind's
   callgrind, page zeroing by the OS not counted): its kernels (`aba`, `computeMinverse`,
   `computeRNEADerivatives`, one product) do less than `computeABADerivatives` does, and the
   per-point Python bookkeeping, copies and checks fit in the difference (before those
