@@ -410,25 +410,32 @@ def run_processes(system: System, layout: Layout, inputs: Mapping[str, np.ndarra
             arrays[name][:] = inputs[name]
         with _using_pool(workers) as pool:
             try:
-                _run_pool(pool, blob, key, segment, layout, options, chunk, progress)
-            except BrokenProcessPool:  # a worker died (killed, out of memory): one fresh try
-                _abandon(workers)
-                try:
-                    _run_pool(_pool(workers), blob, key, segment, layout, options, chunk,
-                              progress)
-                except BrokenProcessPool as exc:
-                    _abandon(workers)
-                    raise PinlinError(f"the worker processes died twice ({exc}): killed, out "
-                                      "of memory, or started by a script without "
-                                      "'if __name__ == \"__main__\":' (workers that are not "
-                                      "forked import it)? Run with fewer workers, or "
-                                      "workers=1") from None
-            except (KeyboardInterrupt, SystemExit):
+                _run_twice(pool, workers, blob, key, segment, layout, options, chunk, progress)
+            except (KeyboardInterrupt, SystemExit):  # in either try: the pool ends with it
                 _abandon(workers)
                 raise
     finally:
         segment.unlink()
     return arrays
+
+
+def _run_twice(pool: ProcessPoolExecutor, workers: int, blob: bytes, key: str,
+               segment: _Segment, layout: Layout, options: Options, chunk: int,
+               progress: Callable[[int, int], None] | None) -> None:
+    """:func:`_run_pool`, and once more on a fresh pool if a worker died (killed, out of
+    memory)."""
+    try:
+        _run_pool(pool, blob, key, segment, layout, options, chunk, progress)
+    except BrokenProcessPool:
+        _abandon(workers)
+        try:
+            _run_pool(_pool(workers), blob, key, segment, layout, options, chunk, progress)
+        except BrokenProcessPool as exc:
+            _abandon(workers)
+            raise PinlinError(f"the worker processes died twice ({exc}): killed, out of "
+                              "memory, or started by a script without 'if __name__ == "
+                              "\"__main__\":' (workers that are not forked import it)? Run "
+                              "with fewer workers, or workers=1") from None
 
 
 def _run_pool(pool: ProcessPoolExecutor, blob: bytes, key: str, segment: _Segment,

@@ -302,3 +302,44 @@ def test_an_interrupted_call_prints_no_thread_traceback(tmp_path):
     """)
     assert run.stdout.split() == ["stopped"] * 4 + ["done"], run.stdout + run.stderr
     assert "Traceback" not in run.stderr, run.stderr
+
+
+def test_an_interrupt_during_the_retry_ends_the_pool(tmp_path):
+    """A worker died (the first run raised BrokenProcessPool) and Ctrl-C came during the
+    retry on a fresh pool: that pool stayed registered with its pending tasks, which the next
+    call waited behind. It ends with the interrupt now."""
+    run = _script(tmp_path, """
+        from concurrent.futures.process import BrokenProcessPool
+
+        import numpy as np
+        import pinlin
+        from pinlin import parallel
+
+        real, calls = parallel._run_pool, []
+
+        def broken_once(pool, *args, **kwargs):
+            calls.append(pool)
+            if len(calls) == 1:
+                raise BrokenProcessPool("a worker died")
+            return real(pool, *args, **kwargs)
+
+        def stop(done, total):
+            if done < total:
+                raise KeyboardInterrupt
+
+        if __name__ == "__main__":
+            parallel._run_pool = broken_once
+            rng = np.random.default_rng(0)
+            q, v, u = (rng.uniform(-1, 1, (4000, 6)) for _ in range(3))
+            try:
+                pinlin.linearize_trajectory("ur5", q, v, u, workers=2, chunk=20,
+                                            progress=stop)
+            except KeyboardInterrupt:
+                print("stopped", len(calls), flush=True)
+            print("pools", len(parallel._pools), flush=True)
+            parallel._run_pool = real
+            pinlin.linearize_trajectory("ur5", q[:40], v[:40], u[:40], workers=2)
+            print("done", flush=True)
+    """)
+    assert run.stdout.split() == ["stopped", "2", "pools", "0", "done"], \
+        run.stdout + run.stderr
