@@ -48,14 +48,13 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from .batch_screen import SECOND_ORDER, at_point, check, may_warn, screen, suspect
 from .chart import PLANAR
-from .conditioning import WARN_CONDITION, trace_condition, warn_if_ill_conditioned
+from .conditioning import WARN_CONDITION
 from .coordinates import FREE_FLYER, SPHERICAL
-from .exceptions import ModelError, PinlinError
+from .exceptions import PinlinError
 from .system import System
 
-#: The per-point second-order stacks of ``second_order=True`` (Bu = S is constant).
-SECOND_ORDER = ("M", "C_damp", "K")
 #: Points per block of the batch kernel: a block's results (Talos: 65 kB a point) are screened
 #: for NaN and inf while they are still in the cache.
 BLOCK = 32
@@ -271,8 +270,8 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
     """Compute the models of points ``lo:hi`` into ``arrays`` (:meth:`Layout.views` or
     :meth:`Layout.allocate`, zero-filled; inputs q, v, u already there) and screen them:
     ``bad[k]`` = 1 where point k has NaN or inf, or where M(q_k) may be singular to working
-    precision (:func:`_suspect`); :func:`check` decides those points exactly
-    (``System.mass_inverse``).
+    precision (:func:`pinlin.batch_screen.suspect`); :func:`check` decides those points
+    exactly (``System.mass_inverse``).
 
     Raises:
         PinlinError: per-point path only, from :func:`pinlin.linearize` (a singular mass
@@ -302,40 +301,9 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
         if system.outputs is not None:
             _fill_outputs(system, arrays, start, stop)
         m_diag, minv_diag = diagonals[:, :stop - start]
-        refused = _suspect(m_diag, minv_diag, limit)
-        _screen(system, arrays, start, stop, refused,
-                _may_warn(m_diag, minv_diag, WARN_CONDITION) & ~refused)
-
-
-#: A screen flags a point whose estimate comes within this factor of its limit: the batch's
-#: M and M^-1 round differently from those the exact check computes (:func:`check`), so a
-#: point on the edge is left to that check, never passed by the screen alone.
-SCREEN_MARGIN = 0.5
-
-
-def _suspect(m_diag: np.ndarray, minv_diag: np.ndarray, limit: float) -> np.ndarray:
-    """Points (rows: diag M and diag M^-1 per point) where M may be singular to working
-    precision: the first test of :meth:`System.check_mass_inverse`, n sum_i M_ii (M^-1)_ii
-    (>= the condition of M scaled to unit diagonal), does not clear ``limit`` (the refusal
-    condition) by :data:`SCREEN_MARGIN`, or M^-1 is not positive on its diagonal (NaN
-    included)."""
-    n = minv_diag.shape[1]
-    if not n:   # no coordinate: nothing to invert
-        return np.zeros(minv_diag.shape[0], dtype=bool)
-    with np.errstate(invalid="ignore", over="ignore"):
-        estimate = n * np.einsum("ij,ij->i", m_diag, minv_diag)
-    return ~((estimate > 0.0) & (estimate < SCREEN_MARGIN * limit)
-             & (minv_diag.min(axis=1, initial=np.inf) > 0.0))
-
-
-def _may_warn(m_diag: np.ndarray, minv_diag: np.ndarray, threshold: float) -> np.ndarray:
-    """Points where the single call's condition estimate tr(M) tr(M^-1) / n
-    (:func:`pinlin.conditioning.trace_condition`) may exceed ``threshold`` (its
-    AccuracyWarning), within :data:`SCREEN_MARGIN`; :func:`check` computes the estimate
-    itself where this says it may."""
-    n = max(minv_diag.shape[1], 1)
-    with np.errstate(invalid="ignore", over="ignore"):
-        return m_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > SCREEN_MARGIN * threshold
+        refused = suspect(m_diag, minv_diag, limit)
+        screen(system, arrays, start, stop, refused,
+               may_warn(m_diag, minv_diag, WARN_CONDITION) & ~refused)
 
 
 def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
@@ -397,28 +365,12 @@ ONE_THREAD_PRODUCT = 131072
 
 def _product_rows(nv: int) -> list[slice]:
     """Row blocks of the product M^-1 [K, C_damp] (nv x nv times nv x 2nv), each small enough
-    for OpenBLAS to run on the calling thread: one block up to nv = 40, more beyond. A bigger
+    for OpenBLAS to run on the calling thread: one block up to nv = 40, more beyond, single
+    rows from nv = 256 (a row of a larger system is itself above the threshold). A bigger
     product starts OpenBLAS's threads, which in worker processes oversubscribe the cores
     (nv = 90, two workers on two cores: products 2.5x slower)."""
     height = max(1, ONE_THREAD_PRODUCT // max(1, 2 * nv * nv))
     return [slice(r, min(r + height, nv)) for r in range(0, max(nv, 1), height)]
-
-
-def _screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
-            bad: np.ndarray, watch: np.ndarray | None = None) -> None:
-    """Mark ``bad`` and the non-finite points of lo:hi in ``arrays["bad"]`` (1): one sum per
-    point and matrix (NaN or inf makes it non-finite; so may finite entries that overflow,
-    which :func:`check` tells apart); ``watch`` (0.5): points whose mass matrix may be ill
-    conditioned enough for the single call's AccuracyWarning."""
-    nv = system.nv
-    for key in ("f0", "A", "B", "C", *SECOND_ORDER):
-        stack = arrays.get(key)
-        if stack is None or not stack.size:
-            continue
-        part = stack[lo:hi, nv:] if key in ("A", "B") else stack[lo:hi]
-        rows = part.reshape(hi - lo, -1)  # a view: each point's rows are contiguous
-        bad |= ~np.isfinite(np.add.reduce(rows, axis=1))  # no BLAS: no threads woken
-    arrays["bad"][lo:hi] = bad if watch is None else np.where(bad, 1.0, 0.5 * watch)
 
 
 def _fill_per_point(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
@@ -476,48 +428,5 @@ def constant_outputs(system: System, q: np.ndarray, v: np.ndarray
     return C, D
 
 
-def at_point(exc: PinlinError, k: int) -> PinlinError:
-    """``exc`` with "trajectory point k: " before its message, same class (the class's own
-    constructor is bypassed: some take several fields)."""
-    new = type(exc).__new__(type(exc))
-    Exception.__init__(new, f"trajectory point {k}: {exc}")
-    new.__dict__.update(exc.__dict__)
-    return new
-
-
-def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
-    """Refuse a stack that :func:`fill` marked bad, naming the first bad point.
-
-    Raises:
-        ModelError: the first bad point's: the mass matrix's own refusal where M(q) is singular
-            (:meth:`System.mass_inverse`), else which matrix is not finite.
-    """
-    passed = []   # suspected, then accepted: their condition is checked below too
-    for k in (int(i) for i in np.flatnonzero(arrays["bad"] == 1.0)):
-        try:
-            system.mass_inverse(arrays["q"][k])
-        except ModelError as exc:
-            raise at_point(exc, k) from None
-        where = [key for key in ("f0", "A", "B", "C", *SECOND_ORDER) if key in arrays
-                 and not np.all(np.isfinite(arrays[key][k]))]
-        if where:
-            raise ModelError(f"trajectory point {k}: scene '{system.scene.name}': the linear "
-                             f"model has NaN or inf in {', '.join(where)}; a model with NaN "
-                             "or inf is never returned")
-        # else: finite entries whose sum overflowed, and a mass matrix System accepts
-        passed.append(k)
-    watch = [*np.flatnonzero(arrays["bad"] == 0.5), *passed]
-    if watch:   # the single call's warning, at the worst of the points it may concern
-        worst, condition = 0, 0.0
-        for k in (int(i) for i in watch):
-            q = arrays["q"][k]
-            c = trace_condition(system.mass_matrix(q),
-                                system.mass_inverse(q, allow_ill_conditioned=True))
-            if not c <= condition:   # NaN wins
-                worst, condition = k, c
-        warn_if_ill_conditioned(f"mass matrix at trajectory point {worst}", condition,
-                                system.scene.name)
-
-
-__all__ = ["BLOCK", "SECOND_ORDER", "Layout", "Options", "batch_path", "check",
+__all__ = ["BLOCK", "SECOND_ORDER", "Layout", "Options", "at_point", "batch_path", "check",
            "constant_outputs", "fill", "generalized_forces", "kinematic_rows"]

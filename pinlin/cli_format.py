@@ -15,6 +15,7 @@ from .exceptions import ArgumentError
 
 if TYPE_CHECKING:
     from .coordinates import JointInfo
+    from .scene import Scene
 
 #: Width of printed matrices: wider ones are printed in labelled blocks of columns.
 MATRIX_WIDTH = 100
@@ -31,7 +32,7 @@ def options_named(options: dict[str, str]) -> Iterator[None]:
         raise ArgumentError(options[exc.argument], exc.reason) from None
 
 
-def scene_of(target: str):
+def scene_of(target: str) -> Scene:
     """:meth:`pinlin.Scene.resolve` of the command line's SCENE_OR_ROBOT, its errors naming
     that argument (the library's name for it is ``target``)."""
     from .scene import Scene

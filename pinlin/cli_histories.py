@@ -111,8 +111,9 @@ def write_history(path: Path, t: np.ndarray, columns: dict[str, np.ndarray]) -> 
     names = list(columns)
     values = np.column_stack([t] + [columns[n] for n in names])
     if path.suffix == ".csv":
-        marker = (HISTORY_MARKER.decode() + " t [s] and the signals the header names, as "
-                  "deviations from the operating point (SI units); not a states file")
+        marker = (HISTORY_MARKER.decode() + " t [s]; the states (q:, v:, nl:) as "
+                  "deviations from the operating point, outputs y: and inputs u: as values "
+                  "(SI units); not a states file")
         lines = [marker, ",".join(["t", *names])]
         lines += [",".join(f"{x:.17g}" for x in row) for row in values]
         write_text_atomic(path, "\n".join(lines) + "\n")

@@ -74,7 +74,7 @@ GAIN_MARKER = b"# pinlin gain:"
 #: The first bytes of a time history in CSV (``pinlin simulate|response --out h.csv``): a
 #: user's states file, whose header (``t,q:...,v:...``) a history's may equal, is then never
 #: taken for one and replaced, nor a history read as a states file (its q: and v: columns are
-#: deviations from the operating point).
+#: deviations from the operating point; its y: and u: columns are values).
 HISTORY_MARKER = b"# pinlin history:"
 #: How the files pinlin writes begin, by suffix: an existing non-empty file at an output
 #: path is replaced only if it begins so (an earlier result), never a file of another kind

@@ -11,8 +11,9 @@
   (i = 0 .. nq-1) for the others (a free flyer's [x, y, z, qx, qy, qz, qw], a continuous
   joint's [cos, sin]); ``v:<coordinate>`` and ``u:<coordinate>`` named as the model's states
   and inputs (``v:root_joint[3]``, ``u:elbow_joint``) [SI units]. Lines starting with ``#``
-  and blank lines are skipped. Without any ``v:`` and ``u:`` column: a schedule of rest
-  points, as for ``.npz``.
+  and blank lines are skipped, but a file whose first line is ``# pinlin history:`` (a time
+  history pinlin wrote: deviations, not states) is refused. Without any ``v:`` and ``u:``
+  column: a schedule of rest points, as for ``.npz``.
 
 **Models** (:meth:`TrajectoryModel.save`): ``.npz`` or MATLAB ``.mat`` holding ``A``, ``B``,
 ``C``, ``D``, ``f0``, ``q``, ``v``, ``u``, ``a``, ``y``, ``t`` when there are times and

@@ -589,7 +589,7 @@ def test_out_inside_a_file_writes_nothing(capfd, tmp_path):
 def test_export_mjcf_refuses_a_bad_time_step(dt, capfd, tmp_path):
     out = tmp_path / "scene.xml"
     code, _, err = cli(capfd, "export-mjcf", "double_pendulum", "-o", out, "--dt", dt)
-    assert_refused(code, err, "argument '--dt'", "finite number of seconds > 0")
+    assert_refused(code, err, "argument '--dt'", "finite time step of at least 1e-09 s")
     assert not out.exists()
 
 

@@ -24,7 +24,7 @@ import scipy.linalg as sla
 from conftest import URDF_DIR
 
 import pinlin
-from pinlin import batch, parallel
+from pinlin import batch, batch_screen, parallel
 from pinlin.chart import kinematic_block
 from pinlin.cli import main
 
@@ -268,7 +268,7 @@ def test_the_final_check_names_the_first_bad_point():
     arrays["A"][4, 9, 2] = np.nan
     arrays["B"][3, 7, 1] = np.inf
     arrays["A"][1, 2, 3] = np.nan  # upper rows: kinematic, finite by construction, not summed
-    batch._screen(system, arrays, 0, 6, np.zeros(6, dtype=bool))
+    batch_screen.screen(system, arrays, 0, 6, np.zeros(6, dtype=bool))
     assert arrays["bad"].tolist() == [0, 0, 0, 1, 1, 0]
     with pytest.raises(pinlin.ModelError, match="trajectory point 3: .* NaN or inf in B"):
         batch.check(system, arrays)

@@ -2,9 +2,9 @@
 
 Reference: ``pinlin.linearize(scene, q=q[k], v=v[k], u=u[k])``, whose M, C_damp, K come from
 ``pin.computeRNEADerivatives`` at (q, v, a0 = M^-1 tau) and whose Bu is S. The batch takes
-M from ``pin.crba`` and K, C_damp from the RNEA derivatives that ``computeABADerivatives``
-evaluates at (q, v, ddq) (no product M A is formed). Both sides sum the same body terms in
-another order, and a0, ddq agree to rounding. The terms of K include the inertial forces of
+M, K and C_damp from ``computeRNEADerivatives`` at (q, v, ddq), ddq from ``pin.aba`` (no
+product M A is formed). a0 and ddq agree to rounding, and so do the terms built on them.
+The terms of K include the inertial forces of
 the acceleration, dM/dq a (about |M| |a|; |a| reaches 9e3 rad/s^2 at these random states
 with springs), those of C_damp the Coriolis terms (about |M| |v|), those of M are at most
 |M|: the tolerance is nv eps (max|K| + max|M| max|a|) for K, nv eps (max|C_damp| + max|M|

@@ -12,7 +12,8 @@ integrate(neutral, dq) with dq in [-1.5, 1.5], velocities in [-2, 2] rad/s or m/
    and B stacks (the memory the result needs: 65 kB a point, which the OS must hand out
    zeroed).
 2. ``workers=2`` against one process at N = 10 000 (target >= 1.8x), the pool started (it is
-   kept for the life of the program), and the first call, which starts it.
+   kept for later calls with the same number of workers), and the first call, which starts
+   it.
 3. The crossover: speed-up of ``workers=2`` (pool started) for N from 25 to 3200 points; below
    the crossover one process is faster.
 4. Mechanisms (issue 15, section 2): the four-bar (nv = 3) and the delta (nv = 12), their
@@ -325,7 +326,8 @@ def report(results: dict, args: argparse.Namespace) -> str:
         f"{results['capacity']:.2f}x |",
         "",
         "Target: >= 1.8x, against the ceiling in the last row (what any two processes gain on "
-        "this machine at the time of the run). The pool is kept for the life of the program; "
+        "this machine at the time of the run). The pool is kept for later calls with the same "
+        "number of workers; "
         "a forked pool starts in "
         f"{1e3 * results['start_s']:.0f} ms (first call at N = {results['small_N']} minus the "
         "same call with the pool started).",

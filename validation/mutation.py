@@ -392,19 +392,19 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/gain_files.py', '        if not same_point(there, here):',
         '        if False:',
         "a gain file's design point is read but not compared with the model's"),
-    'gain_replaces_any_csv': (
+    'history_replaces_a_gain': (
         'pinlin/files.py',
         '                return kind in (None, "gain")',
         '                return True',
         "a time history may replace a gain file"),
     'batch_screen_ignores_condition': (
-        'pinlin/batch.py',
+        'pinlin/batch_screen.py',
         '    return ~((estimate > 0.0) & (estimate < SCREEN_MARGIN * limit)',
         '    return ~((estimate > 0.0) & (estimate < 1e300)',
         "the batch's mass screen flags only a non-positive diagonal of M^-1, not a condition "
         "that reaches the refusal limit"),
     'batch_screen_never_warns': (
-        'pinlin/batch.py',
+        'pinlin/batch_screen.py',
         'm_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > SCREEN_MARGIN * threshold',
         'm_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > 1e300',
         "the batch never flags a point for the single call's ill-conditioning warning"),

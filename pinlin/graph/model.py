@@ -39,7 +39,7 @@ or branch, and what was expected):
 - A graph file is UTF-8 TOML (a leading byte-order mark is accepted) of at most
   :data:`MAX_FILE_BYTES`, nested at most a few hundred levels, with at most
   :data:`MAX_BRANCHES` branches (the matrix method is dense: time grows as the cube of the
-  branch count).
+  branch count), at most :data:`pinlin.graph.nonlinear.MAX_NONLINEAR` of them nonlinear.
 """
 
 from __future__ import annotations
