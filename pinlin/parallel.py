@@ -28,9 +28,9 @@ but those of pinlin's own pool): workers then start in milliseconds and inherit 
 built systems. Otherwise it uses ``forkserver`` (or ``spawn``), whose workers import pinlin
 once.
 
-**Executors** (``executor=``; a Dask cluster's ``client.get_executor()``): chunks of points go
-out with the pickled scene; each worker process builds the scene's System once (a per-process
-cache keyed by the pickled scene) and sends back the chunk's stacked arrays.
+**Executors** (``executor=``; a Dask cluster's ``client.get_executor()``):
+:mod:`pinlin.parallel_executors`, with the pickled scenes, errors and task collection of this
+module.
 
 Each process runs one Pinocchio workspace per thread (:attr:`pinlin.System.data`); the batch
 kernel's one BLAS call per point is cut into products small enough for OpenBLAS to run on the
@@ -57,9 +57,8 @@ import time
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import replace
 from typing import Any
 
 try:
@@ -72,7 +71,7 @@ import numpy as np
 from . import exceptions
 from .batch import Layout, Options, fill
 from .exceptions import ArgumentError, PinlinError
-from .point_warnings import recording, shift, warn_again
+from .point_warnings import recording, warn_again
 from .scene import Scene
 from .system import System
 
@@ -142,7 +141,7 @@ def cached_system(blob: bytes, key: str) -> System:
 # constructor fields, which pickle cannot restore.
 
 
-def _portable(exc: PinlinError) -> tuple[str, str, dict[str, Any]]:
+def portable(exc: PinlinError) -> tuple[str, str, dict[str, Any]]:
     """(class name, message, fields): the fields (a residual, names) where they pickle."""
     fields = {}
     for name, value in exc.__dict__.items():
@@ -154,7 +153,7 @@ def _portable(exc: PinlinError) -> tuple[str, str, dict[str, Any]]:
     return type(exc).__name__, str(exc), fields
 
 
-def _rebuild(error: tuple[str, str, dict[str, Any]]) -> PinlinError:
+def rebuild(error: tuple[str, str, dict[str, Any]]) -> PinlinError:
     """The exception :func:`_portable` described."""
     name, message, fields = error
     cls = getattr(exceptions, name, PinlinError)
@@ -166,7 +165,7 @@ def _rebuild(error: tuple[str, str, dict[str, Any]]) -> PinlinError:
     return exc
 
 
-def _chunks(points: int, chunk: int) -> list[tuple[int, int]]:
+def chunks(points: int, chunk: int) -> list[tuple[int, int]]:
     return [(lo, min(points, lo + chunk)) for lo in range(0, points, chunk)]
 
 
@@ -259,9 +258,9 @@ def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, l
             arrays = None  # the views go before the map closes
             segment.close()
     except PinlinError as exc:
-        return _portable(exc), recorded
+        return portable(exc), recorded
     except OSError as exc:   # the segment gone (removed by another process?)
-        return _portable(PinlinError(f"the shared segment {path} could not be opened: "
+        return portable(PinlinError(f"the shared segment {path} could not be opened: "
                                      f"{exc.strerror or exc}")), recorded
     return None, recorded
 
@@ -443,18 +442,18 @@ def _run_pool(pool: ProcessPoolExecutor, blob: bytes, key: str, segment: _Segmen
               progress: Callable[[int, int], None] | None) -> None:
     N = layout.points
     futures = {pool.submit(_segment_task, blob, key, segment.path, segment.size, layout, lo,
-                           hi, options, os.getpid()): (lo, hi) for lo, hi in _chunks(N, chunk)}
-    _collect(futures, N, progress, lambda result, lo, hi: _raise_if(*result),
+                           hi, options, os.getpid()): (lo, hi) for lo, hi in chunks(N, chunk)}
+    collect(futures, N, progress, lambda result, lo, hi: _raise_if(*result),
              cancel_on_interrupt=False)  # an interrupt ends the pool (_abandon)
 
 
 def _raise_if(error: tuple | None, recorded: list) -> None:
     warn_again(recorded)
     if error is not None:
-        raise _rebuild(error)
+        raise rebuild(error)
 
 
-def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
+def collect(futures: Mapping[Future, tuple[int, int]], total: int,
              progress: Callable[[int, int], None] | None,
              take: Callable[[Any, int, int], None], cancel_on_interrupt: bool = True) -> None:
     """Wait for the tasks in completion order and hand each result to ``take``. An error
@@ -489,61 +488,5 @@ def _collect(futures: Mapping[Future, tuple[int, int]], total: int,
         raise first[1]
 
 
-# --------------------------------------------------------------------------------------------
-# Executors (Dask and any concurrent.futures.Executor).
-
-
-def _chunk_task(blob: bytes, key: str, layout: Layout, inputs: dict[str, np.ndarray],
-                options: Options, caller: int) -> dict[str, Any]:
-    """On an executor's worker: the stacked arrays of one chunk (inputs not sent back), or
-    ``{"error": (class name, message, fields)}``; with ``"warnings"``, those it recorded
-    (``caller``: the caller's pid)."""
-    recorded: list = []
-    try:
-        system = cached_system(blob, key)
-        points = inputs["q"].shape[0]
-        arrays = {**layout.allocate(points), **inputs}
-        recorded = recording(lambda: fill(system, arrays, 0, points, options), caller)
-    except PinlinError as exc:
-        return {"error": _portable(exc), "warnings": recorded}
-    out = {k: val for k, val in arrays.items() if k not in layout.inputs}
-    out["warnings"] = recorded
-    return out
-
-
-def run_executor(system: System, layout: Layout, inputs: Mapping[str, np.ndarray],
-                 options: Options, executor: Executor, chunk: int | None,
-                 progress: Callable[[int, int], None] | None) -> dict[str, np.ndarray]:
-    """Fill the stack with chunks run by ``executor``; ``inputs`` as for
-    :func:`run_processes`."""
-    N = layout.points
-    chunk = chunk or max(MIN_CHUNK, math.ceil(N / EXECUTOR_TASKS))
-    blob, key = share(system.scene)
-    arrays = {**layout.allocate(), **{name: inputs[name] for name in layout.inputs}}
-    part = replace(layout, points=0)  # the chunk's size comes with its rows
-    futures: dict[Future, tuple[int, int]] = {}
-    try:
-        for lo, hi in _chunks(N, chunk):
-            futures[executor.submit(_chunk_task, blob, key, part,
-                                    {name: inputs[name][lo:hi] for name in layout.inputs},
-                                    options, os.getpid())] = (lo, hi)
-    except BaseException as exc:   # the chunks already out are of no use now
-        for future in futures:
-            future.cancel()
-        if isinstance(exc, RuntimeError):   # "cannot schedule new futures after shutdown"
-            raise ArgumentError("executor", f"cannot take work: {exc}") from None
-        raise
-
-    def take(result: dict[str, Any], lo: int, hi: int) -> None:
-        warn_again(result.pop("warnings", []), lo)
-        if "error" in result:
-            error = result["error"]
-            raise _rebuild((error[0], shift(error[1], lo), error[2]))
-        for name, value in result.items():
-            arrays[name][lo:hi] = value
-
-    _collect(futures, N, progress, take)
-    return arrays
-
-
-__all__ = ["cached_system", "run_executor", "run_processes", "share", "shutdown"]
+__all__ = ["EXECUTOR_TASKS", "MIN_CHUNK", "cached_system", "chunks", "collect", "portable",
+           "rebuild", "run_processes", "share", "shutdown"]

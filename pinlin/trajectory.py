@@ -195,7 +195,7 @@ def linearize_trajectory(scene: Scene | System | str | Path, q: np.ndarray,
         inputs["u"], at_rest, family, lam = holding_inputs(system, inputs["q"], bool(allow),
                                                            inputs.get("J"))
     if executor is not None:
-        from .parallel import run_executor
+        from .parallel_executors import run_executor
 
         arrays = run_executor(system, layout, inputs, options, executor, chunk, progress)
         check(system, arrays)
