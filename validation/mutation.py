@@ -30,6 +30,9 @@ sys.path.insert(0, str(ROOT))
 from pinlin.files import write_text_atomic  # noqa: E402
 
 REPORT = ROOT / "validation" / "reports" / "mutation.md"
+#: A suite run against one mutation that takes longer than this [s] is stopped and reported
+#: as "hung" (not caught: no test failed); an unmutated run takes 3-6 minutes here.
+RUN_TIMEOUT = 1200.0
 
 #: name: (file, snippet, replacement, what the bug is)
 MUTATIONS: dict[str, tuple[str, str, str, str]] = {
@@ -439,9 +442,13 @@ def run_one(name: str, work: Path) -> tuple[str, str, float]:
     path.write_text(original.replace(old, new))
     env = {**os.environ, "PYTHONPATH": str(work), "PYTHONDONTWRITEBYTECODE": "1"}
     start = time.perf_counter()
-    res = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-                          "-W", "ignore"], cwd=work, env=env, capture_output=True, text=True,
-                         check=False)
+    try:
+        res = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p",
+                              "no:cacheprovider", "-W", "ignore"], cwd=work, env=env,
+                             capture_output=True, text=True, check=False, timeout=RUN_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        path.write_text(original)
+        return "hung", f"stopped after {RUN_TIMEOUT:.0f} s", time.perf_counter() - start
     seconds = time.perf_counter() - start
     path.write_text(original)
     failed = [ln.split(" ")[1] for ln in res.stdout.splitlines()
