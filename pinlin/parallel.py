@@ -154,7 +154,7 @@ def portable(exc: PinlinError) -> tuple[str, str, dict[str, Any]]:
 
 
 def rebuild(error: tuple[str, str, dict[str, Any]]) -> PinlinError:
-    """The exception :func:`_portable` described."""
+    """The exception :func:`portable` described."""
     name, message, fields = error
     cls = getattr(exceptions, name, PinlinError)
     if not (isinstance(cls, type) and issubclass(cls, PinlinError)):
@@ -244,7 +244,7 @@ def _room(folder: str, size: int) -> bool:
 def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, lo: int,
                   hi: int, options: Options, caller: int) -> tuple[tuple | None, list]:
     """In a worker: fill points lo:hi of the segment at ``path``; returns (the error as
-    :func:`_portable` gives it, or None; the warnings recorded, ``caller``: the caller's
+    :func:`portable` gives it, or None; the warnings recorded, ``caller``: the caller's
     pid)."""
     recorded: list = []
     try:
@@ -261,7 +261,7 @@ def _segment_task(blob: bytes, key: str, path: str, size: int, layout: Layout, l
         return portable(exc), recorded
     except OSError as exc:   # the segment gone (removed by another process?)
         return portable(PinlinError(f"the shared segment {path} could not be opened: "
-                                     f"{exc.strerror or exc}")), recorded
+                                    f"{exc.strerror or exc}")), recorded
     return None, recorded
 
 
@@ -444,7 +444,7 @@ def _run_pool(pool: ProcessPoolExecutor, blob: bytes, key: str, segment: _Segmen
     futures = {pool.submit(_segment_task, blob, key, segment.path, segment.size, layout, lo,
                            hi, options, os.getpid()): (lo, hi) for lo, hi in chunks(N, chunk)}
     collect(futures, N, progress, lambda result, lo, hi: _raise_if(*result),
-             cancel_on_interrupt=False)  # an interrupt ends the pool (_abandon)
+            cancel_on_interrupt=False)  # an interrupt ends the pool (_abandon)
 
 
 def _raise_if(error: tuple | None, recorded: list) -> None:
@@ -454,8 +454,8 @@ def _raise_if(error: tuple | None, recorded: list) -> None:
 
 
 def collect(futures: Mapping[Future, tuple[int, int]], total: int,
-             progress: Callable[[int, int], None] | None,
-             take: Callable[[Any, int, int], None], cancel_on_interrupt: bool = True) -> None:
+            progress: Callable[[int, int], None] | None,
+            take: Callable[[Any, int, int], None], cancel_on_interrupt: bool = True) -> None:
     """Wait for the tasks in completion order and hand each result to ``take``. An error
     cancels the tasks of later points; the error of the earliest point is raised once the
     tasks before it are done (the same point whatever the order of completion). An interrupt

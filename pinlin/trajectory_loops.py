@@ -51,6 +51,7 @@ import pinocchio as pin
 from . import loop_kernels as lk
 from . import trajectory_assembly
 from .assembly import ASSEMBLY_TOL, Partition, assemble, partition
+from .batch_screen import at_point
 from .conditioning import AccuracyWarning
 from .derivatives import resolve_steps
 from .exceptions import ModelError, PinlinError
@@ -120,12 +121,6 @@ def refuse(system: System, derivatives: str) -> None:
     refuse_unsupported(system, "independent", None, derivatives)
 
 
-def _at_point(exc: PinlinError, k: int) -> PinlinError:
-    from .batch import at_point
-
-    return at_point(exc, k)
-
-
 def first_pass(progress: Callable[[int, int], None], N: int) -> Callable[[int], None]:
     """``report(k)`` for :func:`close_loops`: ``progress(k, 2N)``, k points assembled (a
     mechanism's progress counts N assembled points, then N linearized ones)."""
@@ -173,7 +168,7 @@ def close_loops(system: System, Q: np.ndarray, report: Callable[[int], None] | N
         q = assemble(system, Q[0], guess.independent)
         part = partition(system, q, cons.jacobian(q))
     except PinlinError as exc:
-        raise _at_point(exc, 0) from None
+        raise at_point(exc, 0) from None
     if not len(part.independent):
         raise ModelError(f"trajectory point 0: scene '{system.scene.name}': the constraints hold "
                          "every coordinate (no independent coordinate moves), so its models "
@@ -223,7 +218,7 @@ def _close_stacked(system: System, plan: lk.ClosurePlan, Q: np.ndarray,
         raise ModelError(_singular_message(system, frozen, k, condition[k]))
     if failed is not None:
         if isinstance(exc, PinlinError):
-            raise _at_point(exc, failed) from None
+            raise at_point(exc, failed) from None
         raise exc
     out[:] = solved
     return J
@@ -245,7 +240,7 @@ def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
             try:
                 q = assemble(system, pin.integrate(model, q, step), z)
             except PinlinError as exc:
-                raise _at_point(exc, k) from None
+                raise at_point(exc, k) from None
         else:
             q = q.copy()
         G = cons.jacobian(q)[rows]
@@ -346,9 +341,9 @@ def _fill_points(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: 
             model = linearize_moving(system, op, cp, derivatives=derivatives, step=step,
                                      estimate_error=False)
         except PinlinError as exc:
-            raise _at_point(exc, k) from None
+            raise at_point(exc, k) from None
         except np.linalg.LinAlgError:
-            raise _at_point(singular_dynamics(system), k) from None
+            raise at_point(singular_dynamics(system), k) from None
         A[k] = model.A
         B[k] = model.B
         f0[k] = model.f0
