@@ -181,6 +181,7 @@ class ConstraintSet:
         self.row_names = tuple(names)
         self.size = len(names)
         self.length_scale, self.row_scale, self.uniform_scale = self._row_scales()
+        self.linear_rows = self._linear_rows()
         self._support = self._support_columns()
         self._lie_blocks = [slice(j.idx_v, j.idx_v + j.nv) for j in system.joints.values()
                             if j.nv > 1 and j.nq != j.nv]
@@ -264,18 +265,25 @@ class ConstraintSet:
         length += sum(float(np.linalg.norm(kin.jointPlacements[j].translation))
                       for j in carriers) + anchors
         length = length or 1.0   # nothing has a size: Phi is 0 anyway
-        scale = np.full(self.size, length)
-        for kind, _, _, row, _ in self._closures:
-            if kind == "weld":
-                scale[row + 3:row + 6] = 1.0
-        first = self.size - len(self._mimic_rows)
-        joints = {j.idx_v: j for j in self.system.joints.values()}
-        for k, (iv_m, *_rest) in enumerate(self._mimic_rows):
-            if not slides_only(joints[iv_m].kind):
-                scale[first + k] = 1.0
+        scale = np.where(self._linear_rows(), length, 1.0)
         scale.setflags(write=False)
         uniform = float(scale[0]) if scale.size and bool(np.all(scale == scale[0])) else None
         return length, scale, uniform
+
+    def _linear_rows(self) -> np.ndarray:
+        """Which rows (m,) are lengths [m], their multipliers forces [N]: position rows and
+        the mimic rows of prismatic joints; the others (a weld's rotation rows, mimic rows of
+        revolute joints) are angles [rad], their multipliers moments [N*m]. Read-only."""
+        linear = np.ones(self.size, dtype=bool)
+        for kind, _, _, row, _ in self._closures:
+            if kind == "weld":
+                linear[row + 3:row + 6] = False
+        first = self.size - len(self._mimic_rows)
+        joints = {j.idx_v: j for j in self.system.joints.values()}
+        for k, (iv_m, *_rest) in enumerate(self._mimic_rows):
+            linear[first + k] = slides_only(joints[iv_m].kind)
+        linear.setflags(write=False)
+        return linear
 
     def closure_error(self, phi: np.ndarray) -> float:
         """max_i |Phi_i| / row_scale_i: the closure residual relative to the mechanism's

@@ -341,6 +341,22 @@ def output_map(system: JointIndex) -> OutputMap | None:
     return OutputMap(tuple(rows), tuple(frames), tuple(names))
 
 
+def linear_coordinates(system: JointIndex) -> np.ndarray:
+    """Which velocity coordinates (nv,) are lengths [m] rather than angles [rad]: those of
+    prismatic and translation joints, a free flyer's first three (its linear velocity) and a
+    planar joint's first two. A generalized force along a linear coordinate is in N, along an
+    angular one in N*m."""
+    linear = np.zeros(system.nv, dtype=bool)
+    for j in system.joints.values():
+        if slides_only(j.kind):
+            linear[j.idx_v:j.idx_v + j.nv] = True
+        elif j.kind == FREE_FLYER:
+            linear[j.idx_v:j.idx_v + 3] = True
+        elif j.kind == "JointModelPlanar":
+            linear[j.idx_v:j.idx_v + 2] = True
+    return linear
+
+
 def slides_only(kind: str) -> bool:
     """Whether a Pinocchio joint of this kind (``shortname()``) only translates: prismatic
     (PX, PY, PZ, unaligned) or translation joints, whose coordinates are in metres."""

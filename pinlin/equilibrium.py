@@ -15,11 +15,16 @@ forces carry the weight.
   [S, Phi_q^T] [u0; lam] = f - tau_spring in the least-squares sense; what remains is the
   residual. When the columns are dependent (two feet on the ground, or redundant actuation) the
   solution is a family: the least-norm member is taken and a note says how many directions
-  the family has.
+  the family has. The norm is taken in one unit (:func:`statics_split`): each force [N]
+  times a length L, each moment [N*m] as it is, with L the robot's radius of gyration about
+  its centre of mass at q0. A norm that added N to N*m would pick a split that depends on
+  the robot's size (the same robot scaled picked another split, and its model differed by
+  1e-3); this one scales with the robot and does not depend on where it stands.
 - ``solve = "forces"`` holds the inputs at the scene's ``u`` and solves
   Phi_q^T lam = f - tau_spring - S u for lam alone (unique: the independent rows of Phi_q are
-  kept), the user's own split; a residual left over (inputs that cannot balance the robot)
-  is refused with its largest entry.
+  kept, unless the contacts themselves are redundant: then the least-norm forces, in the
+  same unit), the user's own split; a residual left over (inputs that cannot balance the
+  robot) is refused with its largest entry.
 - ``solve = "positions"`` holds the inputs and finds q0 by Newton on the reduced residual
   R^T (f - tau_spring - S u) over z, whose Jacobian is the reduced stiffness
   R^T (K - lam^T Phi_qq) R of the linear model.
@@ -48,6 +53,7 @@ from .assembly import (
     projection,
 )
 from .contacts import statics_notes
+from .coordinates import linear_coordinates
 from .exceptions import EquilibriumError, SceneError
 from .operating_point import OperatingPoint, force_scale, residual_tolerance
 
@@ -168,17 +174,19 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
         if spec.solve == "forces":
             u0 = input_vector(system, spec.u)
         if len(rows):
-            lam_k, rank = lstsq_rank(Gs.T, f - S @ u0)
+            lam_k, rank, length = statics_split(system, q0, Gs.T, f - S @ u0, rows,
+                                                inputs=False)
             free = len(rows) - rank
         else:
             lam_k = np.zeros(0)
         if free:
             notes.append(f"the constraint forces that hold q0 with these inputs are not unique "
                          f"(redundant rows: a family of {free} dimension"
-                         f"{'s' if free > 1 else ''}): the least-norm split is reported")
+                         f"{'s' if free > 1 else ''}): the least-norm split is reported"
+                         f"{_in_one_unit(length)}")
     else:
         SG = np.hstack([S, Gs.T])
-        sol, rank = lstsq_rank(SG, f)  # rank as matrix_rank's
+        sol, rank, length = statics_split(system, q0, SG, f, rows)  # rank as matrix_rank's
         u0, lam_k = sol[:S.shape[1]], sol[S.shape[1]:]
         free = S.shape[1] + len(rows) - rank
         if free:
@@ -186,7 +194,8 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
                    "redundant actuation")
             notes.append(f"the inputs and constraint forces that hold q0 are not unique "
                          f"({why}: a family of {free} dimension{'s' if free > 1 else ''}): the "
-                         "least-norm [u0; lam] is reported; give your own split with "
+                         f"least-norm [u0; lam] is reported{_in_one_unit(length)}; give your "
+                         "own split with "
                          "operating_point.solve = \"forces\" and the inputs u")
     held = S @ u0
     supported = Gs.T @ lam_k
@@ -244,6 +253,63 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
                         lam=lam if cons else None, notes=tuple(notes),
                         lam_names=cons.row_names)
     return op, ConstrainedPoint(part, G)
+
+
+def radius_of_gyration(system, q: np.ndarray) -> float:
+    """sqrt(tr I_G / (2 m)) [m]: the root-mean-square distance of the bodies' mass from their
+    common centre of mass at ``q`` (I_G: their composite inertia about it, ``pin.ccrba``),
+    a length intrinsic to the robot and its posture. Where it vanishes (no mass, or a single
+    point mass) the constraints' size (:attr:`ConstraintSet.length_scale`) stands in."""
+    data = system.data
+    pin.ccrba(system.model, data, q, np.zeros(system.nv))
+    mass = float(data.Ig.mass)
+    spread = float(np.trace(data.Ig.inertia)) / (2.0 * mass) if mass > 0.0 else 0.0
+    if spread > 0.0 and np.isfinite(spread):
+        return float(np.sqrt(spread))
+    return float(system.constraints.length_scale)
+
+
+def unknown_is_force(system, rows: np.ndarray, inputs: bool = True) -> np.ndarray:
+    """Which unknowns of the statics [u0; lam[rows]] (or lam[rows] alone, ``inputs`` False)
+    are forces [N]; the others are moments [N*m]: an input along a linear coordinate
+    (:func:`pinlin.coordinates.linear_coordinates`), the multiplier of a row that is a length
+    (:attr:`ConstraintSet.linear_rows`)."""
+    lam = system.constraints.linear_rows[np.asarray(rows, dtype=int)]
+    if not inputs:
+        return lam
+    return np.concatenate([linear_coordinates(system)[system.actuated], lam])
+
+
+def statics_split(system, q: np.ndarray, a: np.ndarray, b: np.ndarray, rows: np.ndarray,
+                  inputs: bool = True) -> tuple[np.ndarray, int, float | None]:
+    """(x, rank, L): the least-squares solution of the statics a x = b (a = [S, G^T] with
+    ``inputs``, else G^T; ``rows``: the constraint rows of G), and where its columns are
+    dependent the member of the family that the module docstring describes, with the
+    length L [m] its norm used (None where the solution is unique, or all unknowns share one
+    unit: the plain least-norm is then that member).
+
+    The family is solved through y = W x, W = L for a force and 1 for a moment
+    (:func:`unknown_is_force`), with each equation along a linear coordinate times L too
+    (N*m like the others; a consistent system's solutions do not change, and the scaled
+    columns stay balanced at any size), ``lstsq_rank``'s minimum |y| = |W x|."""
+    x, rank = lstsq_rank(a, b)
+    if rank >= a.shape[1]:
+        return x, rank, None
+    force = unknown_is_force(system, rows, inputs)
+    if force.all() or not force.any():
+        return x, rank, None
+    length = radius_of_gyration(system, q)
+    weights = np.where(force, length, 1.0)
+    lever = np.where(linear_coordinates(system), length, 1.0)
+    y, rank = lstsq_rank(lever[:, None] * a / weights, lever * b)
+    return y / weights, rank, length
+
+
+def _in_one_unit(length: float | None) -> str:
+    """The note's words on the norm of a least-norm split (:func:`statics_split`)."""
+    if length is None:
+        return ""
+    return f" (the norm in N*m: forces times the radius of gyration {length:.4g} m)"
 
 
 def _held_force(system, q: np.ndarray) -> np.ndarray:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .coordinates import linear_coordinates
 from .exceptions import ArgumentError, ModelFileError
 from .fields import show
 from .figure_view import View, best_view
@@ -122,14 +123,8 @@ def unit_of(system, modes: ModalAnalysis, motion: ModeMotion) -> tuple[str, str]
     name = modes.coordinate_names[k]
     if name not in system.coordinate_names:
         return name, "(rad or m)"
-    iv = system.coordinate_names.index(name)
-    for joint in system.joints.values():
-        if joint.idx_v <= iv < joint.idx_v + joint.nv:
-            local = iv - joint.idx_v
-            linear = ("Prismatic" in joint.kind or ("FreeFlyer" in joint.kind and local < 3)
-                      or ("Planar" in joint.kind and local < 2))
-            return name, "m" if linear else "rad"
-    return name, "(rad or m)"
+    linear = linear_coordinates(system)[system.coordinate_names.index(name)]
+    return name, "m" if linear else "rad"
 
 
 def title(system, modes: ModalAnalysis, motion: ModeMotion) -> str:

@@ -17,9 +17,11 @@ f the generalized gravity (and centrifugal force in a rotating scene) minus the 
   unless the scene or the caller allows it; the model then describes the motion about
   (q_k, v = 0) with a0 = -M^-1 residual, as for a single call.
 - **Mechanism** (at its assembled configurations, :mod:`pinlin.trajectory_loops`): the
-  least-norm [u0; lam] of [S, G^T] [u0; lam] = f over every constraint row that is not
-  identically zero there (:func:`pinlin.equilibrium.solve_constrained` takes the same rows: the
-  independent ones and the redundant ones that can carry a force). A residual left over is
+  least-norm [u0; lam] (its norm in N*m where the unknowns mix N and N*m, as
+  :func:`pinlin.equilibrium.statics_split` takes it) of [S, G^T] [u0; lam] = f over every
+  constraint row that is not identically zero there
+  (:func:`pinlin.equilibrium.solve_constrained` takes the same rows: the independent ones and
+  the redundant ones that can carry a force). A residual left over is
   refused: a mechanism off equilibrium cannot be linearized at rest.
 """
 
@@ -35,6 +37,8 @@ import pinocchio as pin
 from . import loop_kernels as lk
 from .batch import Layout, at_point
 from .conditioning import AccuracyWarning
+from .coordinates import linear_coordinates
+from .equilibrium import radius_of_gyration, unknown_is_force
 from .exceptions import ArgumentError, EquilibriumError, ModelError, PinlinError, SceneError
 from .linearization import _flag
 from .operating_point import residual_tolerance
@@ -203,12 +207,20 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
     rows = np.flatnonzero(present.any(axis=0))
     SG = np.concatenate([np.broadcast_to(S, (N, nv, nu)), J[:, rows].transpose(0, 2, 1)],
                         axis=2)
-    left, sv, right = np.linalg.svd(SG, full_matrices=False)
     columns = nu + present[:, rows].sum(axis=1)
-    keep = sv > (_EPS * np.maximum(nv, columns) * sv[:, 0])[:, None]
-    inverse = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep)
-    coefficients = inverse * np.einsum("kij,ki->kj", left, held)
-    solution = np.einsum("kji,kj->ki", right, coefficients)
+    solution, keep = _least_norm(SG, held, columns)
+    # Where the solution is a family and its unknowns mix N and N*m, the member whose norm is
+    # in N*m, as a single call picks it (pinlin.equilibrium.statics_split).
+    force = unknown_is_force(system, rows)
+    mixed = np.flatnonzero(keep.sum(axis=1) < columns) if force.any() and not force.all() \
+        else np.zeros(0, dtype=int)
+    if mixed.size:
+        length = np.array([radius_of_gyration(system, Q[k]) for k in mixed])
+        weights = np.where(force, length[:, None], 1.0)
+        lever = np.where(linear_coordinates(system), length[:, None], 1.0)
+        scaled, keep[mixed] = _least_norm(lever[:, :, None] * SG[mixed] / weights[:, None, :],
+                                          lever * held[mixed], columns[mixed])
+        solution[mixed] = scaled / weights
     # As solve_constrained: the residual against the terms in balance (the statics', the
     # inputs' and the constraint forces'), not against their sum.
     inputs = np.einsum("kij,kj->ki", SG[:, :, :nu], solution[:, :nu])
@@ -230,6 +242,19 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
     lam = np.zeros((N, cons.size))
     lam[:, rows] = solution[:, nu:]
     return np.ascontiguousarray(solution[:, :nu]), np.ones(N, dtype=bool), family, lam
+
+
+def _least_norm(SG: np.ndarray, b: np.ndarray, columns: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(the least-norm least-squares solutions of SG_k x = b_k (N, columns), which singular
+    values each kept (N, columns)): one batched SVD, singular values below
+    eps max(rows, ``columns``) s_max dropped (``columns``: each point's columns that are not
+    identically zero), as LAPACK ``dgelsd`` drops them."""
+    left, sv, right = np.linalg.svd(SG, full_matrices=False)
+    keep = sv > (_EPS * np.maximum(SG.shape[1], columns) * sv[:, 0])[:, None]
+    inverse = np.divide(1.0, sv, out=np.zeros_like(sv), where=keep)
+    coefficients = inverse * np.einsum("kij,ki->kj", left, b)
+    return np.einsum("kji,kj->ki", right, coefficients), keep
 
 
 def sensitivity(system: System, Q: np.ndarray, condition: np.ndarray,

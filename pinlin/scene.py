@@ -54,11 +54,12 @@ foot's tip; its force is reported, and a warning is given when it pulls the robo
 ground), a ``weld`` the whole frame (a flat foot; force and torque about the frame's origin).
 Contacts on a floating base make a standing robot: at rest the inputs and contact forces must
 balance gravity, ``[S, Phi_q^T] [u0; lam] = g(q0)``. With two feet or four legs that split is
-not unique; pinlin then reports the least-norm [u0; lam] and says so in the operating point's
-notes. ``solve = "forces"`` instead holds the inputs at ``u`` (zero for joints not named) and
-solves the contact (and loop) forces alone, which are then unique: a user's own split. If the
-inputs given cannot balance the robot (the base's own six equations, or an unactuated joint),
-pinlin refuses with the force left over. The forces come back as
+not unique; pinlin then reports the least-norm [u0; lam], its norm in N*m (forces times the
+robot's radius of gyration, :func:`pinlin.equilibrium.statics_split`), and says so in the
+operating point's notes. ``solve = "forces"`` instead holds the inputs at ``u`` (zero for
+joints not named) and solves the contact (and loop) forces alone, which are then unique: a
+user's own split. If the inputs given cannot balance the robot (the base's own six equations,
+or an unactuated joint), pinlin refuses with the force left over. The forces come back as
 ``OperatingPoint.contact_forces``: contact name -> (force [N], torque [N*m]), in the world
 frame, applied by the world to the robot.
 

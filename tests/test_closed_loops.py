@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import URDF_DIR
+from statics_reference import radius_of_gyration, weighted_orthogonality
 
 import pinlin
 from pinlin.assembly import ASSEMBLY_TOL, assemble
@@ -502,8 +503,10 @@ def test_redundant_row_is_dropped_and_reported():
 
 def test_redundant_actuation_reports_the_least_norm_inputs():
     """Crank and rocker both driven: the inputs and loop forces that hold q0 form a family;
-    pinlin reports that and the least-norm member, orthogonal to the family's directions (the
-    nullspace of [S, Phi_q^T] from an SVD). With the crank alone the note is absent."""
+    pinlin reports that and the least-norm member with the norm in N*m (the loop's forces
+    times the radius of gyration of the links, from their inertias here; the input torques
+    as they are): W x orthogonal to W times the family's directions (the nullspace of
+    [S, Phi_q^T] from an SVD). With the crank alone the note is absent."""
     import scipy.linalg as sla
 
     single = pinlin.linearize(URDF_DIR / "four_bar.toml")
@@ -526,7 +529,9 @@ def test_redundant_actuation_reports_the_least_norm_inputs():
     np.testing.assert_allclose(SG @ x, f, atol=1e-9)
     null = sla.null_space(SG)
     assert null.shape[1] == 1
-    assert abs(null.T @ x).max() < 1e-9 * np.abs(x).max()
+    L = radius_of_gyration(system.model, op.q)
+    assert weighted_orthogonality(null, x, np.array([1.0, 1.0, L, L])) < 1e-9
+    assert any(f"radius of gyration {L:.4g} m" in n for n in op.notes)
 
 
 def test_constraint_forces_balance_the_statics():

@@ -25,6 +25,7 @@ import pinocchio as pin
 import pytest
 import scipy.linalg as sla
 from conftest import URDF_DIR
+from statics_reference import radius_of_gyration, weighted_orthogonality
 
 import pinlin
 from pinlin.assembly import assemble
@@ -247,8 +248,9 @@ def test_standing_robot_statics(name):
     """The contacts carry the weight (vertical forces sum to m g, m from Pinocchio, to 1e-9;
     measured 2e-15); gravity is balanced, g(q0) = S u0 + J^T lam with Pinocchio's Jacobians;
     the split is one of a family whose dimension the note states, and pinlin's is its
-    least-norm member (orthogonal to the family's directions, an SVD here); the independent
-    model has 2 (nv - rank J) states."""
+    least-norm member with the norm in N*m (forces times the robot's radius of gyration L,
+    from the bodies' inertias here; torques as they are): W x orthogonal to W times the
+    family's directions (an SVD here); the independent model has 2 (nv - rank J) states."""
     scene = _scene(name)
     system = scene.system
     model = pinlin.linearize(scene)
@@ -267,7 +269,14 @@ def test_standing_robot_statics(name):
     assert model.n_states == 2 * (system.nv - rank)
     family = sla.null_space(SJ)
     assert any(f"a family of {family.shape[1]} dimensions" in n for n in op.notes)
-    assert np.abs(family.T @ x).max() <= 1e-9 * np.abs(x).max()
+    assert not any(j.kind.startswith("JointModelP") for j in system.joints.values())
+    forces = np.concatenate([[True, True, True] if c.type == "point" else [True] * 3 + [False] * 3
+                             for c in system.scene.contacts])
+    L = radius_of_gyration(pm, op.q)
+    weights = np.concatenate([np.ones(len(op.u)), np.where(forces, L, 1.0)])
+    # rounding: |W x| eps per entry of SJ's SVD, conditioning of the family aside: 1e-9
+    assert weighted_orthogonality(family, x, weights) <= 1e-9
+    assert any(f"radius of gyration {L:.4g} m" in n for n in op.notes)
     assert all(f[2] > 0 for f, _ in op.contact_forces.values())   # every foot pushes
 
 

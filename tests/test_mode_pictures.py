@@ -9,10 +9,12 @@ closure with the distance of the loop frames computed by Pinocchio at the drawn 
 from __future__ import annotations
 
 import io
+import tomllib
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import URDF_DIR
 
 import pinlin
 from pinlin.cli import main
@@ -366,3 +368,20 @@ def test_one_mode_named_twice_is_refused(tmp_path):
         with pytest.raises(pinlin.ArgumentError, match="name the same mode"):
             plot_modes(scene, modes, tmp_path / "m.png", indices)
     assert not (tmp_path / "m.png").exists()
+
+
+def test_a_sliding_mode_is_titled_in_metres():
+    """The slider-crank in its slider's coordinate: its one mode moves the slider (metres),
+    and the picture's title gives the amplitude in m. The slider is Pinocchio's
+    ``JointModelPX``, which the title's test for a prismatic joint (the word "Prismatic" in
+    the kind) missed: it said rad."""
+    from pinlin.mode_pictures import title
+
+    data = tomllib.loads((URDF_DIR / "slider_crank.toml").read_text())
+    data["urdf"] = str(URDF_DIR / data["urdf"])
+    data["operating_point"]["independent"] = ["slider"]
+    scene = pinlin.Scene.from_dict(data)
+    modes = pinlin.modal(pinlin.linearize(scene))
+    assert modes.coordinate_names == ("slider",)
+    motion = mode_motion(scene, modes, modes.modes()[0])
+    assert title(scene.system, modes, motion).endswith(" m on slider")

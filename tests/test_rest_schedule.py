@@ -284,6 +284,17 @@ def test_a_redundant_row_carries_its_least_norm_force(tmp_path):
     assert_single_calls(scene, traj)
 
 
+def test_a_redundantly_actuated_schedule_splits_as_single_calls_do():
+    """The four-bar with crank and rocker both driven, at six crank angles: the inputs and
+    loop forces are a family at every point, mixing N*m (the inputs) and N (the forces), and
+    the stacked statics must pick each point's split as the single call does, its norm in
+    N*m (forces times the links' radius of gyration at that point)."""
+    scene = scene_file("four_bar", inputs={"actuated": ["crank", "rocker"]})
+    traj = pinlin.linearize_trajectory(scene, schedule(scene, 6, 0.3, 9))
+    assert traj.info["least_norm_points"] == list(range(6))
+    assert_single_calls(scene, traj)
+
+
 def test_rotating_mechanisms_schedule_and_trajectory_point_by_point():
     """A spinning four-bar: the stacked kernels do not cover a steady rotation, so its points
     are assembled and linearized one by one; both a schedule and a given-state trajectory

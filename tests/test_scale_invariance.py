@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 import pinlin
+from pinlin.robots import load_robot
 from pinlin.scene import bundled_scenes
 
 
@@ -33,7 +34,8 @@ def scaled_scene(name: str, s: float, k: float, tmp: Path, **overrides) -> pinli
     ``overrides``: scene fields replaced (after scaling)."""
     path = bundled_scenes()[name]
     data = tomllib.loads(path.read_text())
-    tree = ET.parse(path.parent / data.pop("urdf"))
+    tree = ET.parse(load_robot(data.pop("robot")).urdf_path if "robot" in data
+                    else path.parent / data.pop("urdf"))
     for link in tree.getroot().iter("link"):
         for tag in ("visual", "collision"):
             for element in link.findall(tag):
@@ -109,6 +111,39 @@ def test_eigenvalues_scale_as_one_over_root_s(tmp_path, name, s, k):
     size = np.abs(lam_ref).max()
     assert np.abs(lam - lam_ref).max() <= 1e-11 * size, (lam, lam_ref)
     assert model.operating_point.equilibrium == reference.operating_point.equilibrium
+
+
+@pytest.mark.parametrize("s, k", SCALES)
+def test_a_standing_robot_splits_its_weight_alike_at_any_size_and_place(tmp_path, s, k):
+    """solo12 on its four feet (point contacts) in its SRDF posture: the inputs and contact
+    forces that hold it form a family of 6 dimensions, and the member pinlin reports must be
+    the same physical split at any size (u0 times k s, the forces times k, the eigenvalues
+    / sqrt(s)) and wherever the robot stands (moved 64 m along x). The plain least-norm
+    [u0; lam], which adds N*m to N, picked another split at each size: u0 off by 10 % to 100 %
+    and the eigenvalues by 4e-4 to 2e-3. Scaled, every number is the original's times a
+    power of 2 (module docstring: measured equal bit for bit); moved, the feet's positions
+    round to eps 64 m against their 0.2 m spread (measured 1e-13 relative): 1e-11."""
+    q = load_robot("solo12").q_ref.copy()
+    reference = pinlin.linearize(scaled_scene("solo12_standing", 1.0, 1.0, tmp_path), q=q)
+    op_ref = reference.operating_point
+    assert any("a family of 6 dimensions" in n for n in op_ref.notes)
+    lam_ref = eigenvalues(reference)
+    size = np.abs(lam_ref).max()
+    q_scaled = q.copy()
+    q_scaled[:3] *= s
+    q_moved = q.copy()
+    q_moved[0] += 64.0
+    for scene, q_k, length, mass in (
+            (scaled_scene("solo12_standing", s, k, tmp_path), q_scaled, s, k),
+            (scaled_scene("solo12_standing", 1.0, 1.0, tmp_path), q_moved, 1.0, 1.0)):
+        model = pinlin.linearize(scene, q=q_k)
+        op = model.operating_point
+        np.testing.assert_allclose(op.u / (mass * length), op_ref.u, rtol=0,
+                                   atol=1e-11 * np.abs(op_ref.u).max())
+        np.testing.assert_allclose(op.lam / mass, op_ref.lam, rtol=0,
+                                   atol=1e-11 * np.abs(op_ref.lam).max())
+        lam = eigenvalues(model) * np.sqrt(length)
+        assert np.abs(lam - lam_ref).max() <= 1e-11 * size, (lam, lam_ref)
 
 
 def test_the_penalty_warns_where_its_alpha_is_small_for_the_masses(tmp_path):

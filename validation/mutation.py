@@ -417,6 +417,19 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '        lines = [",".join(["t", *names])]',
         "a CSV time history is written without its marker line (it cannot be told from a "
         "user's states file)"),
+    'statics_split_unweighted': (
+        'pinlin/equilibrium.py', '    weights = np.where(force, length, 1.0)',
+        '    weights = np.ones(force.size)',
+        "a standing robot's least-norm [u0; lam] adds N to N*m (the split depends on the "
+        "robot's size)"),
+    'schedule_split_unweighted': (
+        'pinlin/rest_schedule.py', '    if mixed.size:', '    if False:',
+        "a schedule's stacked statics take the plain least-norm split where a single call "
+        "takes the one in N*m"),
+    'sliding_mode_titled_in_rad': (
+        'pinlin/mode_pictures.py', '    return name, "m" if linear else "rad"',
+        '    return name, "rad"',
+        "a mode picture gives a slider's amplitude in rad"),
     'cli_response_feedback_sign': (
         'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
         '        model = model.closed_loop(-gain[0])',
