@@ -29,8 +29,15 @@ Tolerances, written into every report:
   below it are compared in absolute terms.
 - loops: MuJoCo's equality constraints leak a fraction 1 - d (impedance d <= 0.9999) of the
   free acceleration: the physical eigenvalues are off by O(1e-4) at d = 0.9999. pinlin builds
-  MuJoCo at d = 0.999 and d = 0.9999 (dt = 1e-4, time constant 2 dt) and extrapolates each
-  matched eigenvalue linearly to d = 1; both raw and extrapolated errors are reported.
+  MuJoCo at d = 0.999 and d = 0.9999 (time constant 2 dt) and extrapolates each matched
+  eigenvalue linearly to d = 1; both raw and extrapolated errors are reported. The step is
+  set by the system's own time scale, dt = :data:`LOOP_PHASE` / max |lam| (at most
+  :data:`LOOP_DT_MAX`): the soft constraints then stay 1 / (2 LOOP_PHASE) = 1000 times faster
+  than the fastest mode at any size, and the MuJoCo problem is the same problem with time
+  stretched (dynamic similarity), so its error does not grow with the system. A fixed
+  dt = 1e-4 s failed the bundled four-bar made 4x larger (error 1.2e-6 against 1e-6) and
+  256x larger (1.2e-4): the constraint springs, stiff as 1 / dt^2, amplify the rounding of
+  the positions against ever slower modes.
 """
 
 from __future__ import annotations
@@ -67,7 +74,13 @@ EIG_TOL = 1e-6
 EPS_OPEN = 3e-4
 #: Loops: stiff soft constraints (time constant 2 dt) make larger steps inaccurate.
 EPS_LOOP = 1e-6
-LOOP_DT = 1e-4
+#: Loops: MuJoCo's step times the fastest eigenvalue of pinlin's model, max |lam| dt [-]
+#: (module docstring). Measured on the bundled four-bar's extrapolated eigenvalue error:
+#: 4e-8 at 4.8e-4 (its old dt = 1e-4 s), 4e-6 at 1.4e-4 (rounding amplified by stiffer
+#: constraints), 4e-7 at 1.4e-3 and 4.8e-3; the delta 1e-7 from 8e-4 to 8e-3.
+LOOP_PHASE = 5e-4
+#: Loops: the longest step [s], for a system whose modes are all (near) rigid.
+LOOP_DT_MAX = 1e-2
 
 
 @dataclass
@@ -279,8 +292,13 @@ def validate(scene, name: str | None = None, *, picture: bool | None = None) -> 
     ref = modes.eigenvalues
     res.pinlin_eigs = ref
     loops = bool(system.constraints)
-    lam_max = float(np.abs(ref).max(initial=1.0))
-    dt = LOOP_DT if loops else min(1e-3, 0.01 / max(lam_max, 1e-9))
+    if loops:   # (the fastest mode, however slow: a floor of 1 would undo the scaling)
+        fastest = float(np.abs(ref).max(initial=0.0))
+        dt = LOOP_DT_MAX if not fastest * LOOP_DT_MAX > LOOP_PHASE else \
+            max(LOOP_PHASE / fastest, mjcf.MIN_TIME_STEP)
+    else:
+        lam_max = float(np.abs(ref).max(initial=1.0))
+        dt = min(1e-3, 0.01 / max(lam_max, 1e-9))
     res.dt = dt
     op = model.operating_point
     try:

@@ -531,7 +531,7 @@ def test_redundant_actuation_reports_the_least_norm_inputs():
     assert null.shape[1] == 1
     L = radius_of_gyration(system.model, op.q)
     assert weighted_orthogonality(null, x, np.array([1.0, 1.0, L, L])) < 1e-9
-    assert any(f"radius of gyration {L:.4g} m" in n for n in op.notes)
+    assert any(f"the radius of gyration, {L:.4g} m" in n for n in op.notes)
 
 
 def test_constraint_forces_balance_the_statics():

@@ -276,7 +276,7 @@ def test_standing_robot_statics(name):
     weights = np.concatenate([np.ones(len(op.u)), np.where(forces, L, 1.0)])
     # rounding: |W x| eps per entry of SJ's SVD, conditioning of the family aside: 1e-9
     assert weighted_orthogonality(family, x, weights) <= 1e-9
-    assert any(f"radius of gyration {L:.4g} m" in n for n in op.notes)
+    assert any(f"the radius of gyration, {L:.4g} m" in n for n in op.notes)
     assert all(f[2] > 0 for f, _ in op.contact_forces.values())   # every foot pushes
 
 
@@ -628,3 +628,47 @@ def test_planar_limb_warns_only_when_straight(tmp_path, posture, warns):
         pinlin.linearize(str(tmp_path / "tri.toml"))
     limb = [w for w in caught if "singular posture" in str(w.message)]
     assert bool(limb) == warns
+
+
+def _point_mass_arm(x0: float) -> str:
+    """A 3R arm in the x-z plane, its base joint at (x0, 0, 0), links 0.4 m; its only mass a
+    1 kg point on the second link (no radius of gyration)."""
+    joint = ('<joint name="{0}" type="revolute"><parent link="{1}"/><child link="{2}"/>'
+             '<origin xyz="{3} 0 0"/><axis xyz="0 -1 0"/>'
+             '<limit lower="-9" upper="9" effort="100" velocity="10"/></joint>')
+    return ('<robot name="arm3"><link name="world_link"/><link name="l1"/>'
+            '<link name="l2"><inertial><origin xyz="0.2 0 0"/><mass value="1.0"/>'
+            '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>'
+            '<link name="l3"/><link name="tip"/>'
+            + joint.format("j1", "world_link", "l1", x0) + joint.format("j2", "l1", "l2", 0.4)
+            + joint.format("j3", "l2", "l3", 0.4)
+            + '<joint name="tipj" type="fixed"><parent link="l3"/><child link="tip"/>'
+              '<origin xyz="0.4 0 0"/></joint></robot>')
+
+
+def test_a_point_mass_arm_splits_alike_wherever_it_stands(tmp_path):
+    """The 3R arm, every joint driven, its tip held by a point contact: inputs and tip force
+    are a family of 2 dimensions. Its mass is one point, so it has no radius of gyration:
+    the length of the split's norm is then the spread of its joints and closure frames, which
+    moves with the arm. Moved 10 m along x it must report the same split (the anchors' and
+    the base's distance from the world origin had stood in: 2.1 m here, 22.1 m there, and
+    the split changed by 20 %); positions at 10 m round to eps 10 m against the 0.4 m links:
+    1e-12 relative."""
+    ops = []
+    for x0 in (0.0, 10.0):
+        path = tmp_path / f"arm_{x0:g}.urdf"
+        path.write_text(_point_mass_arm(x0))
+        scene = pinlin.Scene.from_dict({
+            "name": "arm3", "urdf": str(path), "effects": {"gravity": [0.0, 0.0, -G]},
+            "contacts": [{"name": "tip", "frame": "tip", "type": "point"}],
+            "operating_point": {"q": {"j1": 0.6, "j2": -0.9, "j3": -0.8},
+                                "independent": ["j1"]},
+            "inputs": {"actuated": "all"}})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", pinlin.AccuracyWarning)
+            ops.append(pinlin.linearize(scene).operating_point)
+    assert any("a family of 2 dimensions" in n and "spread of its joints" in n
+               for n in ops[0].notes)
+    np.testing.assert_allclose(ops[1].u, ops[0].u, rtol=0, atol=1e-12 * np.abs(ops[0].u).max())
+    np.testing.assert_allclose(ops[1].lam, ops[0].lam, rtol=0,
+                               atol=1e-12 * np.abs(ops[0].lam).max())

@@ -430,6 +430,13 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/mode_pictures.py', '    return name, "m" if linear else "rad"',
         '    return name, "rad"',
         "a mode picture gives a slider's amplitude in rad"),
+    'statics_length_from_the_origin': (
+        'pinlin/equilibrium.py', '((P - P.mean(axis=0)) ** 2)', '(P ** 2)',
+        "a point-mass robot's split takes its joints' distance from the world origin as its "
+        "size (the split changes where it stands)"),
+    'validate_fixed_loop_step': (
+        'pinlin/validate.py', 'max(LOOP_PHASE / fastest, mjcf.MIN_TIME_STEP)', '1e-4',
+        "validate steps MuJoCo at a fixed 1e-4 s for every mechanism, whatever its size"),
     'cli_response_feedback_sign': (
         'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
         '        model = model.closed_loop(-gain[0])',
