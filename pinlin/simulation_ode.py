@@ -58,8 +58,15 @@ CHART_LIMIT = 1.0
 PARTITION_RATIO = 10.0
 #: Newton iterations allowed to close the loops at one state.
 NEWTON_ITERATIONS = 30
-#: Newton stops once max |Phi| is below this [m or rad] (rounding: ~1e-16 per metre).
+#: Newton stops once max |Phi_i| / row scale_i is below this (each position row against the
+#: mechanism's size L, :attr:`pinlin.constraints.ConstraintSet.row_scale`; rounding: ~eps).
+#: An absolute 1e-14 m asked a 15 um four-bar for 1e-9 of its size: 50x the steps, and its
+#: motion off by 1e-7 (the stall test below fired instead).
 NEWTON_TOLERANCE = 1e-14
+#: Newton also stops where a step no longer shrinks the residual, once it is below this, and
+#: the loops count as closed below :data:`NEWTON_FAIL` (both relative, as NEWTON_TOLERANCE).
+NEWTON_STALL = 1e-10
+NEWTON_FAIL = 1e-9
 PLANAR = "JointModelPlanar"
 #: (where, why) of a failure to close the loops, for the messages of :class:`Mechanism`.
 _ALONG = ("along the motion", "the mechanism reached a singular position")
@@ -170,6 +177,7 @@ class Mechanism:
         jac = self.cons.jacobian(op.q)
         part = partition(system, op.q, jac)
         self.rows, self.dropped = part.rows, part.dropped
+        self.row_scale = self.cons.row_scale[part.rows]
         m = len(part.rows)
         self._kkt = np.zeros((self.nv + m, self.nv + m))  # [[M, -G^T], [G, 0]], refilled
         self._use(part.independent)
@@ -225,9 +233,9 @@ class Mechanism:
             q = pin.integrate(model, self.q_ref, c)
             phi, G = cons.residual_and_jacobian(q)
             phi, G = phi[rows], G[rows]
-            best = float(np.abs(phi).max(initial=0.0))
+            best = float((np.abs(phi) / self.row_scale).max(initial=0.0))
             # Converged at rounding level, or a step no longer shrinks the residual.
-            if best <= NEWTON_TOLERANCE or (best < 1e-10 and best > 0.25 * previous):
+            if best <= NEWTON_TOLERANCE or (best < NEWTON_STALL and best > 0.25 * previous):
                 break
             previous = best
             # d Phi / d c: G times d q / d c of the chart q = integrate(q_ref, c).
@@ -239,9 +247,10 @@ class Mechanism:
                 break
             if not np.all(np.isfinite(c)):
                 break
-        if not best < 1e-9:
+        if not best < NEWTON_FAIL:
+            worst = float(np.abs(phi).max(initial=0.0)) if np.all(np.isfinite(phi)) else best
             raise ModelError(f"scene '{self.system.scene.name}': the loops do not close "
-                             f"{self._where[0]} (residual {best:.3g} m or rad after Newton): "
+                             f"{self._where[0]} (residual {worst:.3g} m or rad after Newton): "
                              f"{self._where[1]}")
         R = self._basis(G)
         self.cache = (cz.copy(), c, q, G, R)

@@ -437,6 +437,10 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     'validate_fixed_loop_step': (
         'pinlin/validate.py', 'max(LOOP_PHASE / fastest, mjcf.MIN_TIME_STEP)', '1e-4',
         "validate steps MuJoCo at a fixed 1e-4 s for every mechanism, whatever its size"),
+    'simulation_newton_absolute': (
+        'pinlin/simulation_ode.py', 'best = float((np.abs(phi) / self.row_scale).max(initial=0.0))',
+        'best = float(np.abs(phi).max(initial=0.0))',
+        "the simulation closes the loops to an absolute 1e-14 m, whatever the mechanism's size"),
     'cli_response_feedback_sign': (
         'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
         '        model = model.closed_loop(-gain[0])',
