@@ -43,13 +43,12 @@ def suspect(m_diag: np.ndarray, minv_diag: np.ndarray, limit: float) -> np.ndarr
 
 
 def may_warn(m_diag: np.ndarray, minv_diag: np.ndarray, threshold: float) -> np.ndarray:
-    """Points where the single call's condition estimate tr(M) tr(M^-1) / n
+    """Points where the single call's condition estimate sum_i M_ii (M^-1)_ii
     (:func:`pinlin.conditioning.trace_condition`) may exceed ``threshold`` (its
     AccuracyWarning), within :data:`SCREEN_MARGIN`; :func:`check` computes the estimate
     itself where this says it may."""
-    n = max(minv_diag.shape[1], 1)
     with np.errstate(invalid="ignore", over="ignore"):
-        return m_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > SCREEN_MARGIN * threshold
+        return np.einsum("ij,ij->i", m_diag, minv_diag) > SCREEN_MARGIN * threshold
 
 
 def screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
@@ -109,7 +108,7 @@ def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
             if not c <= condition:   # NaN wins
                 worst, condition = k, c
         warn_if_ill_conditioned(f"mass matrix at trajectory point {worst}", condition,
-                                system.scene.name)
+                                system.scene.name, size=system.nv)
 
 
 __all__ = ["SCREEN_MARGIN", "SECOND_ORDER", "at_point", "check", "may_warn", "screen",

@@ -5,9 +5,14 @@ condition number cond. pinlin records the estimates it can get cheaply in
 ``model.info["condition"]`` and warns (:class:`AccuracyWarning`, carrying the estimate) above
 :data:`WARN_CONDITION`:
 
-- ``mass_matrix``: condition of the (reduced) mass matrix (mass or inertia ratios along a
-  chain, near-massless bodies): tr(M) tr(M^-1) / n for open chains (within a factor n of
-  cond_2), the 1-norm condition for reduced mass matrices of mechanisms;
+- ``mass_matrix``: condition of the (reduced) mass matrix scaled to unit diagonal,
+  Ms = D^-1/2 M D^-1/2 with D = diag(M) (near-dependent coordinates: two joints that move
+  the same mass the same way): sum_i M_ii (M^-1)_ii = tr(Ms) tr(Ms^-1) / n for open chains
+  (within a factor n of cond_2(Ms)), the 1-norm condition of Ms for the reduced mass
+  matrices of mechanisms. The scaling takes the units out (kg against kg*m^2 on a floating
+  base, a graded chain of light links): a Cholesky solve with M loses about log10
+  cond_2(Ms) digits, not log10 cond_2(M) (van der Sluis). Unscaled, a 15 um box was told
+  its mass matrix had condition 2e11 and PR2's reported 9e6 where its scaled one is 69;
 - ``constraint_jacobian``: 2-norm condition of the dependent-coordinate block Phi_d of the
   loop Jacobian (a mechanism near a toggle or singular position: R ill-conditioned); warned
   above 1e6, since near a fold it grows only like 1 / sqrt(distance to the fold).
@@ -29,7 +34,7 @@ reliable digit is left there (numpy.linalg.matrix_rank would call Ms rank-defici
 further on). A mass matrix that is exactly singular (icub's head, a point mass turned about
 its centre by two neck joints) computes to cond_2(Ms) = 3e14 to 9e14 at n = 38 (300 random
 postures), 25-75x above the 1.2e13 limit; the next worst loadable robot is below 1e3. Below
-the limit the raw estimate warns from :data:`WARN_CONDITION` as before.
+the limit the scaled estimate warns from :data:`WARN_CONDITION`.
 """
 
 from __future__ import annotations
@@ -53,13 +58,27 @@ class AccuracyWarning(UserWarning):
 
 
 def trace_condition(M: np.ndarray, Minv: np.ndarray) -> float:
-    """Estimate of cond_2 of a symmetric positive definite M from M and its inverse:
-    tr(M) tr(M^-1) / n, within a factor n of cond_2 (since cond_2 <= tr(M) tr(M^-1) <=
-    n^2 cond_2); two traces, no factorization."""
-    n = M.shape[0]
-    if n == 0:
+    """Estimate of cond_2 of a symmetric positive definite M scaled to unit diagonal
+    (Ms = D^-1/2 M D^-1/2, D = diag M) from M and its inverse: tr(Ms) tr(Ms^-1) / n =
+    sum_i M_ii (M^-1)_ii, within a factor n of cond_2(Ms) (since cond_2 <= tr(Ms) tr(Ms^-1)
+    <= n^2 cond_2); two diagonals, no factorization. 1 for n = 0."""
+    if M.shape[0] == 0:
         return 1.0
-    return float(M.trace() * Minv.trace() / n)
+    return float(np.dot(M.diagonal(), Minv.diagonal()))
+
+
+def scaled_condition_1(M: np.ndarray, Minv: np.ndarray) -> float:
+    """The 1-norm condition of M scaled to unit diagonal, |Ms|_1 |Ms^-1|_1 with
+    Ms^-1 = D^1/2 M^-1 D^1/2, from M and its inverse (np.linalg.cond(Ms, 1)); 1 for n = 0,
+    inf where a diagonal entry of M is not positive."""
+    if M.shape[0] == 0:
+        return 1.0
+    d = M.diagonal()
+    if not d.min() > 0.0:
+        return float("inf")
+    s = np.sqrt(d)
+    return float(np.abs(M / np.outer(s, s)).sum(axis=0).max()
+                 * np.abs(Minv * np.outer(s, s)).sum(axis=0).max())
 
 
 def refuse_condition(n: int) -> float:
@@ -102,13 +121,22 @@ def singular_to_working_precision(M: np.ndarray, bound: float = float("inf")) ->
 
 
 def warn_if_ill_conditioned(what: str, condition: float, name: str,
-                            threshold: float = WARN_CONDITION, stacklevel: int = 4) -> None:
+                            threshold: float = WARN_CONDITION, stacklevel: int = 4,
+                            size: int | None = None) -> None:
     """Issue an :class:`AccuracyWarning` when ``condition`` exceeds ``threshold`` (a
-    non-positive estimate, from an inverse that is not positive definite, counts as infinite)."""
+    non-positive estimate, from an inverse that is not positive definite, counts as infinite).
+    The digits it says are reliable: 16 - log10(condition), or with the matrix's ``size`` n,
+    -log10(n eps condition), the relative error of a solve (0 where the refusal limit
+    0.1 / (n eps) of :func:`refuse_condition` is reached)."""
     if not math.isfinite(condition) or condition <= 0.0:
         condition = float("inf")
     if condition > threshold:
-        digits = 16 - math.log10(condition) if math.isfinite(condition) else 0.0
+        if not math.isfinite(condition):
+            digits = 0.0
+        elif size is None:
+            digits = 16 - math.log10(condition)
+        else:
+            digits = -math.log10(max(size, 1) * float(np.finfo(float).eps) * condition)
         warnings.warn(AccuracyWarning(
             f"model '{name}': the {what} has condition number {condition:.2e}; about "
             f"{max(digits, 0):.0f} significant digits of the result are reliable", condition),

@@ -15,7 +15,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pytest
 from conftest import REPO
-from test_trajectory import _SINGULAR
+from test_trajectory import _COLLINEAR
 
 import pinlin
 from pinlin import parallel
@@ -177,13 +177,13 @@ def test_an_orphaned_segment_is_removed_by_the_next_call():
 
 @pytest.mark.parametrize("how", ["serial", "workers", "executor"])
 def test_warnings_of_the_per_point_path_reach_the_caller(tmp_path, how):
-    """A point mass on two joints, M singular at q2 = 0, with numerical derivatives (the
-    per-point path): points 3 and 5 near the singularity warn. In a worker process, or a
+    """A point mass on two parallel joints, M singular at q2 = 0, with numerical derivatives
+    (the per-point path): points 3 and 5 near the singularity warn. In a worker process, or a
     process pool's, the warnings stayed there; now they reach the caller."""
-    (tmp_path / "sing.urdf").write_text(_SINGULAR)
+    (tmp_path / "sing.urdf").write_text(_COLLINEAR)
     scene = pinlin.Scene.from_urdf(tmp_path / "sing.urdf")
     q = np.tile([0.0, 0.5], (8, 1))
-    q[3, 1], q[5, 1] = 1e-7, 1e-7
+    q[3, 1], q[5, 1] = 1e-6, 1e-6
     kwargs = {"serial": {}, "workers": {"workers": 2, "chunk": 3},
               "executor": {"executor": ProcessPoolExecutor(1), "chunk": 3}}[how]
     try:
@@ -206,11 +206,11 @@ def test_threads_of_an_executor_leave_the_warning_filters_alone(tmp_path):
     swallowed. Recording happens only in another process's main thread."""
     from concurrent.futures import ThreadPoolExecutor
 
-    (tmp_path / "sing.urdf").write_text(_SINGULAR)
+    (tmp_path / "sing.urdf").write_text(_COLLINEAR)
     scene = pinlin.Scene.from_urdf(tmp_path / "sing.urdf")
     N = 128
     q = np.tile([0.0, 0.5], (N, 1))
-    q[3::4, 1] = 1e-7
+    q[3::4, 1] = 1e-6
     before = (list(warnings.filters), warnings._showwarnmsg_impl)
     with ThreadPoolExecutor(4) as pool:
         for _ in range(3):   # (the test runs inside pytest's own catch_warnings)

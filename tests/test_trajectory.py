@@ -735,15 +735,32 @@ _SINGULAR = """<robot name="sing">
 </robot>
 """
 
+#: A point mass on two parallel joints 0.5 m apart: at q2 = 0 both move it along one line
+#: (M singular); near it M is nearly so, in any units (its condition scaled to unit
+#: diagonal ~ 8e-2 / q2^2).
+_COLLINEAR = """<robot name="collinear">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0 0 0"/><mass value="0"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><axis xyz="0 0 1"/>
+    <origin xyz="0.5 0 0"/><limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+</robot>
+"""
+
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_an_ill_conditioned_point_warns_as_the_single_call(tmp_path, workers):
-    """A point mass on two joints: M is singular where q2 = 0. At q2 = 1e-7 and 1e-9 the
-    single call warns (condition 5e13, 5e17); the trajectory returned the same models
+    """A point mass on two parallel joints 0.5 m apart: where q2 = 0 both move it along the
+    same line and M is singular. At q2 = 1e-5 and 1e-6 the single call warns (M scaled to
+    unit diagonal: condition estimate 8e10, 8e12); the trajectory returned the same models
     without a word."""
-    (tmp_path / "sing.urdf").write_text(_SINGULAR)
+    (tmp_path / "sing.urdf").write_text(_COLLINEAR)
     scene = pinlin.Scene.from_urdf(tmp_path / "sing.urdf")
-    for q2 in (1e-7, 1e-9):
+    for q2 in (1e-5, 1e-6):
         q = np.array([[0.0, 0.5], [0.0, q2]])
         with pytest.warns(pinlin.AccuracyWarning, match="the mass matrix has condition"):
             single = pinlin.linearize(scene, q=q[1], v=np.zeros(2), u=np.zeros(2))

@@ -408,8 +408,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "that reaches the refusal limit"),
     'batch_screen_never_warns': (
         'pinlin/batch_screen.py',
-        'm_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > SCREEN_MARGIN * threshold',
-        'm_diag.sum(axis=1) * minv_diag.sum(axis=1) / n > 1e300',
+        'np.einsum("ij,ij->i", m_diag, minv_diag) > SCREEN_MARGIN * threshold',
+        'np.einsum("ij,ij->i", m_diag, minv_diag) > 1e300',
         "the batch never flags a point for the single call's ill-conditioning warning"),
     'history_without_marker': (
         'pinlin/cli_histories.py',
@@ -441,6 +441,10 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/simulation_ode.py', 'best = float((np.abs(phi) / self.row_scale).max(initial=0.0))',
         'best = float(np.abs(phi).max(initial=0.0))',
         "the simulation closes the loops to an absolute 1e-14 m, whatever the mechanism's size"),
+    'mass_condition_unscaled': (
+        'pinlin/conditioning.py', '    return float(np.dot(M.diagonal(), Minv.diagonal()))',
+        '    return float(M.trace() * Minv.trace() / M.shape[0])',
+        "the mass matrix's condition estimate mixes the coordinates' units (kg and kg*m^2)"),
     'cli_response_feedback_sign': (
         'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
         '        model = model.closed_loop(-gain[0])',

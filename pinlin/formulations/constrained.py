@@ -41,7 +41,7 @@ from scipy.linalg import lapack
 
 from ..arrays import read_only
 from ..assembly import projection
-from ..conditioning import AccuracyWarning, warn_if_ill_conditioned
+from ..conditioning import AccuracyWarning, scaled_condition_1, warn_if_ill_conditioned
 from ..contacts import limb_conditions, warn_singular_limbs
 from ..derivatives import (
     SecondOrderTerms,
@@ -375,11 +375,11 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     A, B, Mz_inv = _first_order(Mz, Cz, Kz, Bz, with_inverse=True)
     if Cz is None:
         Cz = np.zeros_like(Mz)
-    # np.linalg.cond(Mz, 1): ||Mz||_1 ||Mz^-1||_1, the inverse from the same Cholesky factor.
-    mass_condition = (float(np.abs(Mz).sum(axis=0).max() * np.abs(Mz_inv).sum(axis=0).max())
-                      if Mz.size else 1.0)
+    # np.linalg.cond(Ms, 1) of Mz scaled to unit diagonal, the inverse from the same
+    # Cholesky factor (pinlin.conditioning).
+    mass_condition = scaled_condition_1(Mz, Mz_inv)
     warn_if_ill_conditioned("reduced mass matrix", mass_condition, system.scene.name,
-                            stacklevel=5)
+                            stacklevel=5, size=Mz.shape[0])
     alt = _alt(terms)
     A_alt = rounding = None
     if alt is not None:

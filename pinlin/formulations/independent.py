@@ -115,7 +115,7 @@ def linearize_independent(system: System, op: OperatingPoint, *, derivatives: st
     C, D, out_names, y0 = output_matrices(system, op)
     op_with_y = op.with_outputs(y0)
     condition = trace_condition(terms.M, Minv)
-    warn_if_ill_conditioned("mass matrix", condition, system.scene.name)
+    warn_if_ill_conditioned("mass matrix", condition, system.scene.name, size=nv)
     info = {
         "formulation": "independent",
         "derivatives": terms.backend,
