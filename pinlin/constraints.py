@@ -285,6 +285,11 @@ class ConstraintSet:
         linear.setflags(write=False)
         return linear
 
+    def closure_frames(self) -> list[int]:
+        """Frame ids of every loop's and contact's moving frames (a contact's world anchor is
+        none), in row order."""
+        return [f for _, f1, f2, _, _ in self._closures for f in (f1, f2) if f is not None]
+
     def closure_error(self, phi: np.ndarray) -> float:
         """max_i |Phi_i| / row_scale_i: the closure residual relative to the mechanism's
         size (:meth:`_row_scales`), what the assembly drives below ASSEMBLY_TOL."""

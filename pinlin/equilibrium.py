@@ -276,8 +276,7 @@ def statics_length(system, q: np.ndarray) -> tuple[float, str]:
     kin, kd = system.kin_model, system.kin_data
     pin.framesForwardKinematics(kin, kd, system.kin_q(q))
     points = [kd.oMi[j].translation for j in range(1, kin.njoints)]
-    points += [kd.oMf[f].translation for _, f1, f2, _, _ in system.constraints._closures
-               for f in (f1, f2) if f is not None]
+    points += [kd.oMf[f].translation for f in system.constraints.closure_frames()]
     P = np.array(points)
     spread = float(((P - P.mean(axis=0)) ** 2).sum(axis=1).mean()) if len(P) else 0.0
     if spread > 0.0 and np.isfinite(spread):
