@@ -48,7 +48,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from .batch_screen import SECOND_ORDER, at_point, check, may_warn, screen, suspect
+from .batch_screen import SECOND_ORDER, at_point, check, may_warn, scaled_traces, screen, suspect
 from .chart import PLANAR
 from .conditioning import WARN_CONDITION
 from .coordinates import FREE_FLYER, SPHERICAL
@@ -301,9 +301,9 @@ def fill(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
         if system.outputs is not None:
             _fill_outputs(system, arrays, start, stop)
         m_diag, minv_diag = diagonals[:, :stop - start]
-        refused = suspect(m_diag, minv_diag, limit)
-        screen(system, arrays, start, stop, refused,
-               may_warn(m_diag, minv_diag, WARN_CONDITION) & ~refused)
+        traces = scaled_traces(m_diag, minv_diag)
+        refused = suspect(traces, minv_diag, limit)
+        screen(system, arrays, start, stop, refused, may_warn(traces, WARN_CONDITION) & ~refused)
 
 
 def _fill_batch(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,

@@ -27,28 +27,34 @@ SECOND_ORDER = ("M", "C_damp", "K")
 SCREEN_MARGIN = 0.5
 
 
-def suspect(m_diag: np.ndarray, minv_diag: np.ndarray, limit: float) -> np.ndarray:
-    """Points (rows: diag M and diag M^-1 per point) where M may be singular to working
-    precision: the first test of :meth:`System.check_mass_inverse`, n sum_i M_ii (M^-1)_ii
-    (>= the condition of M scaled to unit diagonal), does not clear ``limit`` (the refusal
+def scaled_traces(m_diag: np.ndarray, minv_diag: np.ndarray) -> np.ndarray:
+    """sum_i M_ii (M^-1)_ii of each point (rows: diag M and diag M^-1 per point), the single
+    call's condition estimate (:func:`pinlin.conditioning.trace_condition`): tr(Ms) tr(Ms^-1)
+    / n of M scaled to unit diagonal. What :func:`suspect` and :func:`may_warn` test."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.einsum("ij,ij->i", m_diag, minv_diag)
+
+
+def suspect(traces: np.ndarray, minv_diag: np.ndarray, limit: float) -> np.ndarray:
+    """Points where M may be singular to working precision: the first test of
+    :meth:`System.check_mass_inverse`, n sum_i M_ii (M^-1)_ii (``traces``: :func:`scaled_traces`;
+    >= the condition of M scaled to unit diagonal), does not clear ``limit`` (the refusal
     condition) by :data:`SCREEN_MARGIN`, or M^-1 is not positive on its diagonal (NaN
     included)."""
     n = minv_diag.shape[1]
     if not n:   # no coordinate: nothing to invert
         return np.zeros(minv_diag.shape[0], dtype=bool)
     with np.errstate(invalid="ignore", over="ignore"):
-        estimate = n * np.einsum("ij,ij->i", m_diag, minv_diag)
+        estimate = n * traces
     return ~((estimate > 0.0) & (estimate < SCREEN_MARGIN * limit)
              & (minv_diag.min(axis=1, initial=np.inf) > 0.0))
 
 
-def may_warn(m_diag: np.ndarray, minv_diag: np.ndarray, threshold: float) -> np.ndarray:
-    """Points where the single call's condition estimate sum_i M_ii (M^-1)_ii
-    (:func:`pinlin.conditioning.trace_condition`) may exceed ``threshold`` (its
-    AccuracyWarning), within :data:`SCREEN_MARGIN`; :func:`check` computes the estimate
-    itself where this says it may."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        return np.einsum("ij,ij->i", m_diag, minv_diag) > SCREEN_MARGIN * threshold
+def may_warn(traces: np.ndarray, threshold: float) -> np.ndarray:
+    """Points where the single call's condition estimate (``traces``: :func:`scaled_traces`)
+    may exceed ``threshold`` (its AccuracyWarning), within :data:`SCREEN_MARGIN`;
+    :func:`check` computes the estimate itself where this says it may."""
+    return traces > SCREEN_MARGIN * threshold
 
 
 def screen(system: System, arrays: Mapping[str, np.ndarray], lo: int, hi: int,
@@ -111,5 +117,5 @@ def check(system: System, arrays: Mapping[str, np.ndarray]) -> None:
                                 system.scene.name, size=system.nv)
 
 
-__all__ = ["SCREEN_MARGIN", "SECOND_ORDER", "at_point", "check", "may_warn", "screen",
-           "suspect"]
+__all__ = ["SCREEN_MARGIN", "SECOND_ORDER", "at_point", "check", "may_warn", "scaled_traces",
+           "screen", "suspect"]

@@ -180,8 +180,8 @@ class ConstraintSet:
                          for c in mimics]
         self.row_names = tuple(names)
         self.size = len(names)
-        self.length_scale, self.row_scale, self.uniform_scale = self._row_scales()
         self.linear_rows = self._linear_rows()
+        self.length_scale, self.row_scale, self.uniform_scale = self._row_scales()
         self._support = self._support_columns()
         self._lie_blocks = [slice(j.idx_v, j.idx_v + j.nv) for j in system.joints.values()
                             if j.nv > 1 and j.nq != j.nv]
@@ -265,7 +265,7 @@ class ConstraintSet:
         length += sum(float(np.linalg.norm(kin.jointPlacements[j].translation))
                       for j in carriers) + anchors
         length = length or 1.0   # nothing has a size: Phi is 0 anyway
-        scale = np.where(self._linear_rows(), length, 1.0)
+        scale = np.where(self.linear_rows, length, 1.0)
         scale.setflags(write=False)
         uniform = float(scale[0]) if scale.size and bool(np.all(scale == scale[0])) else None
         return length, scale, uniform

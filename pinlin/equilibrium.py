@@ -316,10 +316,19 @@ def statics_split(system, q: np.ndarray, a: np.ndarray, b: np.ndarray, rows: np.
     if force.all() or not force.any():
         return x, rank, None
     length, what = statics_length(system, q)
-    weights = np.where(force, length, 1.0)
-    lever = np.where(linear_coordinates(system), length, 1.0)
+    weights, lever = statics_scales(system, force, length)
     y, rank = lstsq_rank(lever[:, None] * a / weights, lever * b)
     return y / weights, rank, (length, what)
+
+
+def statics_scales(system, force: np.ndarray, length: float | np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(W, lever) of :func:`statics_split`: each unknown's weight, L for a force (``force``,
+    :func:`unknown_is_force`) and 1 for a moment, and each equation's, L along a linear
+    coordinate and 1 along an angular one. ``length``: L [m], or a column (N, 1) of them for
+    N points at once."""
+    return (np.where(force, length, 1.0),
+            np.where(linear_coordinates(system), length, 1.0))
 
 
 def _in_one_unit(length: tuple[float, str] | None) -> str:

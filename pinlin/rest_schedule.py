@@ -37,8 +37,7 @@ import pinocchio as pin
 from . import loop_kernels as lk
 from .batch import Layout, at_point
 from .conditioning import AccuracyWarning
-from .coordinates import linear_coordinates
-from .equilibrium import statics_length, unknown_is_force
+from .equilibrium import statics_length, statics_scales, unknown_is_force
 from .exceptions import ArgumentError, EquilibriumError, ModelError, PinlinError, SceneError
 from .linearization import _flag
 from .operating_point import residual_tolerance
@@ -216,8 +215,7 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
         else np.zeros(0, dtype=int)
     if mixed.size:
         length = np.array([statics_length(system, Q[k])[0] for k in mixed])
-        weights = np.where(force, length[:, None], 1.0)
-        lever = np.where(linear_coordinates(system), length[:, None], 1.0)
+        weights, lever = statics_scales(system, force, length[:, None])
         scaled, keep[mixed] = _least_norm(lever[:, :, None] * SG[mixed] / weights[:, None, :],
                                           lever * held[mixed], columns[mixed])
         solution[mixed] = scaled / weights

@@ -248,9 +248,9 @@ class Mechanism:
             if not np.all(np.isfinite(c)):
                 break
         if not best < NEWTON_FAIL:
-            worst = float(np.abs(phi).max(initial=0.0)) if np.all(np.isfinite(phi)) else best
             raise ModelError(f"scene '{self.system.scene.name}': the loops do not close "
-                             f"{self._where[0]} (residual {worst:.3g} m or rad after Newton): "
+                             f"{self._where[0]} (residual "
+                             f"{float(np.abs(phi).max(initial=0.0)):.3g} m or rad after Newton): "
                              f"{self._where[1]}")
         R = self._basis(G)
         self.cache = (cz.copy(), c, q, G, R)

@@ -408,8 +408,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "that reaches the refusal limit"),
     'batch_screen_never_warns': (
         'pinlin/batch_screen.py',
-        'np.einsum("ij,ij->i", m_diag, minv_diag) > SCREEN_MARGIN * threshold',
-        'np.einsum("ij,ij->i", m_diag, minv_diag) > 1e300',
+        '    return traces > SCREEN_MARGIN * threshold',
+        '    return traces > 1e300',
         "the batch never flags a point for the single call's ill-conditioning warning"),
     'history_without_marker': (
         'pinlin/cli_histories.py',
@@ -418,8 +418,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "a CSV time history is written without its marker line (it cannot be told from a "
         "user's states file)"),
     'statics_split_unweighted': (
-        'pinlin/equilibrium.py', '    weights = np.where(force, length, 1.0)',
-        '    weights = np.ones(force.size)',
+        'pinlin/equilibrium.py', '    return (np.where(force, length, 1.0),',
+        '    return (np.ones(np.broadcast(force, length).shape),',
         "a standing robot's least-norm [u0; lam] adds N to N*m (the split depends on the "
         "robot's size)"),
     'schedule_split_unweighted': (
