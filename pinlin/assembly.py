@@ -64,9 +64,10 @@ def lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     rounding, several times cheaper."""
     m, n = a.shape
     if m > n:
-        nonzero = a.any(axis=1)
-        if int(nonzero.sum()) == n:
-            a, b, m = a[nonzero], b[nonzero], n
+        # A few rows of a few numbers: Python's any() on them is cheaper than numpy's calls.
+        nonzero = [i for i, row in enumerate(a.tolist()) if any(row)]
+        if len(nonzero) == n:
+            a, b, m = a.take(nonzero, axis=0), b.take(nonzero), n
     if m == n and n:
         lu, _, x, info = lapack.dgesv(a, b)
         if info == 0:
@@ -423,7 +424,7 @@ def _newton(system, q_guess: np.ndarray, independent: np.ndarray, max_iter: int,
     for _ in range(max_iter):
         if best <= ASSEMBLY_TOL:
             return q, jac
-        dq[dependent] = lstsq(jac[:, dependent], -phi)
+        dq[dependent] = lstsq(jac.take(dependent, axis=1), -phi)
         # Backtracking keeps Newton from leaving the basin of the branch the guess picked.
         for scale in (1.0, 0.5, 0.25, 0.125, 0.0625):
             trial = pin.integrate(model, q, scale * dq)
