@@ -30,6 +30,7 @@ import scipy.linalg as sla
 from scipy.linalg import lapack
 
 from .arrays import complement
+from .coordinates import characteristic_length, linear_coordinates
 from .exceptions import AssemblyError, SceneError
 
 #: Rank threshold relative to the largest pivot of the constraint Jacobian.
@@ -142,12 +143,53 @@ class Partition:
     condition: float
 
 
+def unit_factors(system) -> tuple[np.ndarray, np.ndarray] | None:
+    """(row factors (m,), column factors (nv,)) that put Phi_q in one unit, or None where its
+    entries share one already.
+
+    Phi_q mixes units where a mechanism has linear coordinates [m] beside angular ones
+    [rad] (a slider, a floating base) or a weld's rotation rows [rad] beside position rows
+    [m]: m/rad, m/m, rad/rad and rad/m. A column pivot, a rank decision or a condition number
+    of that matrix then depends on the robot's size (a floating base standing on its feet
+    chose its own translations as independent coordinates at 256 m, and a 4 mm slider-crank
+    reported its dependent block 6e4 times worse conditioned than at 1 m). Rows that are
+    angles times L and columns of linear coordinates times L (L the robot's characteristic
+    length at the scene's posture, :func:`pinlin.coordinates.characteristic_length`) put every
+    entry in m per rad: the choices scale with the robot. Computed once per scene and kept
+    by its constraint sets (however anchored)."""
+    cons = system.constraints
+    if not cons._unit_factors:
+        rows = cons.linear_rows
+        columns = linear_coordinates(system)
+        if (rows.all() or not rows.any()) and (columns.all() or not columns.any()):
+            cons._unit_factors = (None,)
+        else:
+            length = characteristic_length(system, system.scene_configuration)[0]
+            factors = (np.where(rows, 1.0, length), np.where(columns, length, 1.0))
+            for arr in factors:
+                arr.setflags(write=False)
+            cons._unit_factors = factors
+    return None if cons._unit_factors[0] is None else cons._unit_factors
+
+
+def in_one_unit(system, G: np.ndarray, rows: np.ndarray | None = None,
+                columns: np.ndarray | None = None) -> np.ndarray:
+    """``G``, the rows ``rows`` (default all) and columns ``columns`` (default all) of Phi_q,
+    in one unit (:func:`unit_factors`); ``G`` itself where Phi_q has one already. A stack
+    (..., rows, columns) is scaled alike."""
+    factors = unit_factors(system)
+    if factors is None:
+        return G
+    r, c = factors
+    return G * (r if rows is None else r[rows])[:, None] * (c if columns is None else c[columns])
+
+
 def independent_rows(jac: np.ndarray, groups: list[tuple[str, str, range]], source
                      ) -> np.ndarray:
     """Rows of ``jac`` that are linearly independent (pivoted QR of jac^T), in order.
 
     Args:
-        jac: The constraint Jacobian (m x nv).
+        jac: The constraint Jacobian (m x nv), in one unit (:func:`in_one_unit`).
         groups: (scene field, description, rows) of each loop and contact
             (:attr:`pinlin.constraints.ConstraintSet.groups`).
         source: The scene file, for messages.
@@ -178,9 +220,11 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
     """Independent rows and coordinates at ``q`` (the scene's ``independent`` or a choice).
 
     pinlin's choice: dependent coordinates are the pivots of a column-pivoted QR of the
-    independent rows of Phi_q, with unactuated coordinates preferred as dependent (columns of
-    actuated ones scaled by 1e-3), so that actuated joints stay independent where the mechanism
-    allows: a standing robot's floating base is dependent, its states are joints.
+    independent rows of Phi_q in one unit (:func:`in_one_unit`), its columns weighted by
+    :func:`preference`: unactuated coordinates are preferred as dependent, so that actuated
+    joints stay independent where the mechanism allows (a standing robot's floating base is
+    dependent, its states are joints). Rows, pivots and the condition number are those of
+    Phi_q in one unit: the same for the robot at any size.
 
     Raises:
         SceneError: the scene's ``independent`` list has the wrong size, names an unknown joint,
@@ -190,10 +234,11 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
     cons = system.constraints
     src = system.scene.source
     jac = cons.jacobian(q) if jac is None else jac
-    rows = independent_rows(jac, cons.groups, src)
+    scaled = in_one_unit(system, jac)   # the choices and the condition, in one unit
+    rows = independent_rows(scaled, cons.groups, src)
     kept = set(rows.tolist())
     dropped = tuple(n for k, n in enumerate(cons.row_names) if k not in kept)
-    G = jac[rows]
+    G = scaled[rows]
     nv, m = system.nv, len(rows)
     names = system.scene.operating_point.independent
     if names:
@@ -208,9 +253,7 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
         independent, chosen = np.arange(nv), False
         dependent = complement(nv, independent)
     else:
-        weight = np.ones(nv)
-        weight[system.actuated] = 1e-3
-        piv = pivoted_qr(G * weight)[1]
+        piv = pivoted_qr(G * preference(system))[1]
         independent = np.sort(piv[m:])
         chosen = True
         dependent = complement(nv, independent)
@@ -224,6 +267,19 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
                          f"configuration (the Jacobian of the others is singular, condition "
                          f"{cond:.3g}); name other independent joints or move q")
     return Partition(rows, dropped, independent, dependent, chosen, cond)
+
+
+def preference(system) -> np.ndarray:
+    """Column weights (nv,) [-] of the partition's pivoted QR, which takes the heaviest
+    columns of Phi_q (in one unit, :func:`in_one_unit`) as dependent: a floating base's or
+    a slider's unactuated translations 1e3, other unactuated coordinates 1, actuated ones
+    1e-3. Actuated joints stay independent where the mechanism allows (a standing robot's
+    states are its joints), and of a floating base the contacts fix the position first (a
+    box balanced on a point keeps its three rotations as states). Pure numbers, so the
+    choice does not depend on the robot's size."""
+    weight = np.where(linear_coordinates(system), 1e3, 1.0)
+    weight[system.actuated] = 1e-3
+    return weight
 
 
 def named_independent(system) -> tuple[np.ndarray, np.ndarray]:

@@ -191,10 +191,12 @@ class ConstraintSet:
                                for f, s in ((f1, 1.0), (f2, -1.0)) if f is not None]
         self._batched_hessian = (not self.has_welds and
                                  all(kin_nv == 1 for kin_nv in self._support_joint_nv()))
-        # Made on first use by pinlin.assembly: the scene's named independent coordinates and
-        # the cache of solved assemblies (one per constraint set: per system and anchoring).
+        # Made on first use by pinlin.assembly: the scene's named independent coordinates, the
+        # cache of solved assemblies (one per constraint set: per system and anchoring) and
+        # the factors that put Phi_q in one unit (assembly.unit_factors).
         self._named_independent: tuple[np.ndarray, np.ndarray] | None = None
         self._assembly_cache = None
+        self._unit_factors: tuple = ()   # (rows, columns), or (None,) where one unit already
 
     def _add(self, names: list[str], kind: str, f1: int, f2: int | None,
              anchor: pin.SE3 | None, label: str) -> range:
@@ -300,7 +302,9 @@ class ConstraintSet:
     def anchored_at(self, system, q: np.ndarray) -> ConstraintSet:
         """The same constraints for ``system`` with the contacts anchored at configuration
         ``q`` (nq)."""
-        return ConstraintSet(system, self._mimics, anchor_q=q)
+        other = ConstraintSet(system, self._mimics, anchor_q=q)
+        other._unit_factors = self._unit_factors   # of the robot, not of where it stands
+        return other
 
     def __bool__(self) -> bool:
         return self.size > 0

@@ -341,6 +341,37 @@ def output_map(system: JointIndex) -> OutputMap | None:
     return OutputMap(tuple(rows), tuple(frames), tuple(names))
 
 
+def characteristic_length(system, q: np.ndarray) -> tuple[float, str]:
+    """(L [m], what it is): the robot's own size, intrinsic to it and its posture at ``q``
+    (not to where it stands). It turns a force into a moment in the norm of a least-norm
+    statics split (:func:`pinlin.equilibrium.statics_split`) and a metre of a linear
+    coordinate into a radian in the constraint Jacobian's partition and condition
+    (:func:`pinlin.assembly.unit_factors`):
+
+    - its radius of gyration sqrt(tr I_G / (2 m)), the root-mean-square distance of the
+      bodies' mass from their common centre of mass (I_G: their composite inertia about it,
+      ``pin.ccrba``);
+    - where that vanishes (no mass, or all of it in one point), the root-mean-square
+      distance of the joints' origins and the closure frames from their centroid;
+    - 1 m where those coincide too (nothing in it has a size)."""
+    data = system.data
+    pin.ccrba(system.model, data, q, np.zeros(system.nv))
+    mass = float(data.Ig.mass)
+    spread = float(np.trace(data.Ig.inertia)) / (2.0 * mass) if mass > 0.0 else 0.0
+    if spread > 0.0 and np.isfinite(spread):
+        return float(np.sqrt(spread)), "the radius of gyration"
+    kin, kd = system.kin_model, system.kin_data
+    pin.framesForwardKinematics(kin, kd, system.kin_q(q))
+    points = [kd.oMi[j].translation for j in range(1, kin.njoints)]
+    points += [kd.oMf[f].translation for f in system.constraints.closure_frames()]
+    P = np.array(points)
+    spread = float(((P - P.mean(axis=0)) ** 2).sum(axis=1).mean()) if len(P) else 0.0
+    if spread > 0.0 and np.isfinite(spread):
+        return (float(np.sqrt(spread)), "the spread of its joints and closure frames (it has "
+                                        "no radius of gyration)")
+    return 1.0, "1 m (nothing in it has a size)"
+
+
 def linear_coordinates(system: JointIndex) -> np.ndarray:
     """Which velocity coordinates (nv,) are lengths [m] rather than angles [rad]: those of
     prismatic and translation joints, a free flyer's first three (its linear velocity) and a

@@ -17,10 +17,10 @@ forces carry the weight.
   solution is a family: the least-norm member is taken and a note says how many directions
   the family has. The norm is taken in one unit (:func:`statics_split`): each force [N]
   times a length L, each moment [N*m] as it is, with L the robot's radius of gyration about
-  its centre of mass at q0 (:func:`statics_length`). A norm that added N to N*m would pick
-  a split that depends on the robot's size (the same robot scaled picked another split, and
-  its model differed by 1e-3); this one scales with the robot and does not depend on where
-  it stands.
+  its centre of mass at q0 (:func:`pinlin.coordinates.characteristic_length`). A norm that
+  added N to N*m would pick a split that depends on the robot's size (the same robot scaled
+  picked another split, and its model differed by 1e-3); this one scales with the robot and
+  does not depend on where it stands.
 - ``solve = "forces"`` holds the inputs at the scene's ``u`` and solves
   Phi_q^T lam = f - tau_spring - S u for lam alone (unique: the independent rows of Phi_q are
   kept, unless the contacts themselves are redundant: then the least-norm forces, in the
@@ -54,7 +54,7 @@ from .assembly import (
     projection,
 )
 from .contacts import statics_notes
-from .coordinates import linear_coordinates
+from .coordinates import characteristic_length, linear_coordinates
 from .exceptions import EquilibriumError, SceneError
 from .operating_point import OperatingPoint, force_scale, residual_tolerance
 
@@ -256,35 +256,6 @@ def solve_constrained(system, q_guess: np.ndarray, *, allow_non_equilibrium: boo
     return op, ConstrainedPoint(part, G)
 
 
-def statics_length(system, q: np.ndarray) -> tuple[float, str]:
-    """(L [m], what it is): the length that turns a force into a moment in the norm of a
-    least-norm split (:func:`statics_split`), intrinsic to the robot and its posture at
-    ``q`` (not to where it stands):
-
-    - its radius of gyration sqrt(tr I_G / (2 m)), the root-mean-square distance of the
-      bodies' mass from their common centre of mass (I_G: their composite inertia about it,
-      ``pin.ccrba``);
-    - where that vanishes (no mass, or all of it in one point), the root-mean-square
-      distance of the joints' origins and the closure frames from their centroid;
-    - 1 m where those coincide too (nothing in it has a size)."""
-    data = system.data
-    pin.ccrba(system.model, data, q, np.zeros(system.nv))
-    mass = float(data.Ig.mass)
-    spread = float(np.trace(data.Ig.inertia)) / (2.0 * mass) if mass > 0.0 else 0.0
-    if spread > 0.0 and np.isfinite(spread):
-        return float(np.sqrt(spread)), "the radius of gyration"
-    kin, kd = system.kin_model, system.kin_data
-    pin.framesForwardKinematics(kin, kd, system.kin_q(q))
-    points = [kd.oMi[j].translation for j in range(1, kin.njoints)]
-    points += [kd.oMf[f].translation for f in system.constraints.closure_frames()]
-    P = np.array(points)
-    spread = float(((P - P.mean(axis=0)) ** 2).sum(axis=1).mean()) if len(P) else 0.0
-    if spread > 0.0 and np.isfinite(spread):
-        return (float(np.sqrt(spread)), "the spread of its joints and closure frames (it has "
-                                        "no radius of gyration)")
-    return 1.0, "1 m (nothing in it has a size)"
-
-
 def unknown_is_force(system, rows: np.ndarray, inputs: bool = True) -> np.ndarray:
     """Which unknowns of the statics [u0; lam[rows]] (or lam[rows] alone, ``inputs`` False)
     are forces [N]; the others are moments [N*m]: an input along a linear coordinate
@@ -302,8 +273,9 @@ def statics_split(system, q: np.ndarray, a: np.ndarray, b: np.ndarray, rows: np.
     """(x, rank, (L, what L is)): the least-squares solution of the statics a x = b
     (a = [S, G^T] with ``inputs``, else G^T; ``rows``: the constraint rows of G), and where
     its columns are dependent the member of the family that the module docstring describes,
-    with the length L [m] its norm used (:func:`statics_length`; None where the solution is
-    unique, or all unknowns share one unit: the plain least-norm is then that member).
+    with the length L [m] its norm used (:func:`pinlin.coordinates.characteristic_length`;
+    None where the solution is unique, or all unknowns share one unit: the plain least-norm
+    is then that member).
 
     The family is solved through y = W x, W = L for a force and 1 for a moment
     (:func:`unknown_is_force`), with each equation along a linear coordinate times L too
@@ -315,7 +287,7 @@ def statics_split(system, q: np.ndarray, a: np.ndarray, b: np.ndarray, rows: np.
     force = unknown_is_force(system, rows, inputs)
     if force.all() or not force.any():
         return x, rank, None
-    length, what = statics_length(system, q)
+    length, what = characteristic_length(system, q)
     weights, lever = statics_scales(system, force, length)
     y, rank = lstsq_rank(lever[:, None] * a / weights, lever * b)
     return y / weights, rank, (length, what)

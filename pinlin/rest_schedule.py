@@ -37,7 +37,8 @@ import pinocchio as pin
 from . import loop_kernels as lk
 from .batch import Layout, at_point
 from .conditioning import AccuracyWarning
-from .equilibrium import statics_length, statics_scales, unknown_is_force
+from .coordinates import characteristic_length
+from .equilibrium import statics_scales, unknown_is_force
 from .exceptions import ArgumentError, EquilibriumError, ModelError, PinlinError, SceneError
 from .linearization import _flag
 from .operating_point import residual_tolerance
@@ -214,7 +215,7 @@ def _mechanism(system: System, Q: np.ndarray, frame_jacobians: np.ndarray | None
     mixed = np.flatnonzero(keep.sum(axis=1) < columns) if force.any() and not force.all() \
         else np.zeros(0, dtype=int)
     if mixed.size:
-        length = np.array([statics_length(system, Q[k])[0] for k in mixed])
+        length = np.array([characteristic_length(system, Q[k])[0] for k in mixed])
         weights, lever = statics_scales(system, force, length[:, None])
         scaled, keep[mixed] = _least_norm(lever[:, :, None] * SG[mixed] / weights[:, None, :],
                                           lever * held[mixed], columns[mixed])

@@ -44,7 +44,7 @@ import pinocchio as pin
 import scipy.linalg as sla
 
 from .arrays import complement
-from .assembly import partition
+from .assembly import in_one_unit, partition, preference
 from .coordinates import FREE_FLYER, SPHERICAL
 from .exceptions import ModelError, ShapeError
 from .operating_point import OperatingPoint
@@ -323,14 +323,13 @@ class Mechanism:
             return self._recentre(q, G, R, v), "chart"
         if not self.d.size:
             return None
-        current = np.linalg.cond(G[:, self.d])
+        G1 = in_one_unit(self.system, G, self.rows)   # as partition() measures it
+        current = np.linalg.cond(G1[:, self.d])
         if current <= PARTITION_RATIO:  # a fresh choice cannot beat it by the ratio
             return None
-        weight = np.ones(self.nv)
-        weight[self.system.actuated] = 1e-3
-        _, _, piv = sla.qr(G * weight, mode="economic", pivoting=True)
+        _, _, piv = sla.qr(G1 * preference(self.system), mode="economic", pivoting=True)
         independent = np.sort(piv[G.shape[0]:])
-        if current <= PARTITION_RATIO * np.linalg.cond(G[:, complement(self.nv, independent)]):
+        if current <= PARTITION_RATIO * np.linalg.cond(G1[:, complement(self.nv, independent)]):
             return None
         self._use(independent)
         c = pin.difference(self.model, self.q_ref, q)

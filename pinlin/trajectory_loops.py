@@ -50,7 +50,7 @@ import pinocchio as pin
 
 from . import loop_kernels as lk
 from . import trajectory_assembly
-from .assembly import ASSEMBLY_TOL, Partition, assemble, partition
+from .assembly import ASSEMBLY_TOL, Partition, assemble, in_one_unit, partition
 from .batch_screen import at_point
 from .conditioning import AccuracyWarning
 from .derivatives import resolve_steps
@@ -209,7 +209,7 @@ def _close_stacked(system: System, plan: lk.ClosurePlan, Q: np.ndarray,
     solved, J, failed, exc = trajectory_assembly.close(system, plan, Q, out[0], rows, z, dep,
                                                        report, REPORT_EVERY)
     last = len(Q) if failed is None else failed
-    Gd = lk.jacobian(plan, J[1:last])[:, rows][:, :, dep]
+    Gd = in_one_unit(system, lk.jacobian(plan, J[1:last])[:, rows][:, :, dep], rows, dep)
     with np.errstate(all="ignore"):
         condition[1:last] = np.linalg.cond(Gd) if len(Gd) else ()
     bad = np.flatnonzero(~(condition[:last] <= REFUSE_CONDITION))
@@ -244,7 +244,8 @@ def _close_per_point(system: System, Q: np.ndarray, frozen: FrozenPartition,
         else:
             q = q.copy()
         G = cons.jacobian(q)[rows]
-        condition[k] = float(np.linalg.cond(G[:, dep])) if len(dep) else 1.0
+        condition[k] = (float(np.linalg.cond(in_one_unit(system, G[:, dep], rows, dep)))
+                        if len(dep) else 1.0)
         if not condition[k] <= REFUSE_CONDITION:  # NaN too
             raise ModelError(_singular_message(system, frozen, k, condition[k]))
         out[k] = q

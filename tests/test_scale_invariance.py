@@ -223,3 +223,44 @@ def test_a_floating_robot_reports_one_mass_condition_at_any_size(tmp_path, s, k)
             warnings.simplefilter("error", pinlin.AccuracyWarning)
             conditions.append(pinlin.linearize(scene, q=q_k).info["condition"]["mass_matrix"])
     assert conditions[1] == conditions[0] < 1e3
+
+
+@pytest.mark.parametrize("name, s, k", [
+    ("solo12_standing", 2.0 ** -8, 2.0 ** -24), ("solo12_standing", 2.0 ** 8, 2.0 ** 20),
+    ("standing_box", 2.0 ** -16, 2.0 ** -8), ("standing_box", 2.0 ** 16, 2.0 ** 20),
+    ("slider_crank", 2.0 ** -14, 2.0 ** -8), ("delta", 2.0 ** -8, 2.0 ** -24)])
+def test_a_mechanism_keeps_its_coordinates_and_condition_at_any_size(tmp_path, name, s, k):
+    """A floating base standing on its feet, a slider-crank and a delta (with linear
+    coordinates beside angular ones) choose their independent coordinates and measure the
+    condition of Phi_d in one unit, so both are the same at any size. In m/m beside m/rad
+    they were not: solo12 at 256 m chose other joints, the box on its tip chose its own
+    translations at 256 m with Phi_d's condition 128 (1.6 at 1 m) and 32768 at 65 km, and the
+    condition of a 61 um slider-crank read 6e4 times its value at 1 m, past the "near a
+    singular position" note. Scaled by powers of 2 the Jacobians scale exactly (module
+    docstring): the same pivots, the condition equal to rounding (1e-11). A trajectory
+    through one state measures every point as its first (stacked for the slider-crank,
+    point by point for solo12), alike at any size."""
+    models, conditions = [], []
+    for scale, mass in ((1.0, 1.0), (s, k)):
+        scene = scaled_scene(name, scale, mass, tmp_path)
+        q = None
+        if scene.system.base_joint:   # its position scaled with the robot; solo12 in its
+            q = (load_robot("solo12").q_ref.copy() if name == "solo12_standing"  # SRDF
+                 else pinlin.operating_point(scaled_scene(name, 1.0, 1.0, tmp_path)).q)
+            q[:3] *= scale                                                      # posture
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", pinlin.AccuracyWarning)
+            models.append(pinlin.linearize(scene, q=q))
+        if name in ("slider_crank", "solo12_standing"):
+            op = models[-1].operating_point
+            trajectory = pinlin.linearize_trajectory(
+                scene, np.array([op.q] * 3), np.zeros((3, op.v.size)), np.array([op.u] * 3))
+            conditions.append(trajectory.info["loops"]["condition"])
+    reference, model = models
+    assert model.info["independent"] == reference.info["independent"]
+    assert model.info["dropped_rows"] == reference.info["dropped_rows"]
+    c_ref = reference.info["condition"]["constraint_jacobian"]
+    assert abs(model.info["condition"]["constraint_jacobian"] - c_ref) <= 1e-11 * c_ref
+    assert c_ref < 1e3
+    if conditions:
+        np.testing.assert_allclose(conditions, conditions[0][0], rtol=1e-11)

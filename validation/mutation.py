@@ -430,8 +430,28 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/mode_pictures.py', '    return name, "m" if linear else "rad"',
         '    return name, "rad"',
         "a mode picture gives a slider's amplitude in rad"),
+    'partition_in_mixed_units': (
+        'pinlin/assembly.py',
+        '    scaled = in_one_unit(system, jac)   # the choices and the condition, in one unit',
+        '    scaled = jac',
+        "the partition pivots and measures Phi_d in m/m beside m/rad: a standing robot's "
+        "states and its condition change with its size"),
+    'partition_translations_not_preferred': (
+        'pinlin/assembly.py', "    weight = np.where(linear_coordinates(system), 1e3, 1.0)",
+        "    weight = np.ones(system.nv)",
+        "a box balanced on a point keeps its translations as states instead of its rotations"),
+    'trajectory_stacked_condition_mixed_units': (
+        'pinlin/trajectory_loops.py',
+        '    Gd = in_one_unit(system, lk.jacobian(plan, J[1:last])[:, rows][:, :, dep], rows, dep)',
+        '    Gd = lk.jacobian(plan, J[1:last])[:, rows][:, :, dep]',
+        "a stacked trajectory measures Phi_d's condition in mixed units after its first point"),
+    'trajectory_point_condition_mixed_units': (
+        'pinlin/trajectory_loops.py',
+        '        condition[k] = (float(np.linalg.cond(in_one_unit(system, G[:, dep], rows, dep)))',
+        '        condition[k] = (float(np.linalg.cond(G[:, dep]))',
+        "a trajectory assembled point by point measures Phi_d's condition in mixed units"),
     'statics_length_from_the_origin': (
-        'pinlin/equilibrium.py', '((P - P.mean(axis=0)) ** 2)', '(P ** 2)',
+        'pinlin/coordinates.py', '((P - P.mean(axis=0)) ** 2)', '(P ** 2)',
         "a point-mass robot's split takes its joints' distance from the world origin as its "
         "size (the split changes where it stands)"),
     'validate_fixed_loop_step': (
