@@ -672,3 +672,29 @@ def test_a_point_mass_arm_splits_alike_wherever_it_stands(tmp_path):
     np.testing.assert_allclose(ops[1].u, ops[0].u, rtol=0, atol=1e-12 * np.abs(ops[0].u).max())
     np.testing.assert_allclose(ops[1].lam, ops[0].lam, rtol=0,
                                atol=1e-12 * np.abs(ops[0].lam).max())
+
+
+@pytest.mark.parametrize("name", ["solo12_standing", "g1_standing", "talos_standing", "blade"])
+def test_a_standing_robot_keeps_its_states_under_another_machines_rounding(name):
+    """A symmetric robot's legs give the partition's pivoted QR columns of equal norm, and
+    rounding alone chose among them: Phi_q perturbed by 1e-14 relative (what another CPU or
+    BLAS may round differently) gave 8 to 14 different sets of independent coordinates, so
+    the states of a saved model or gain could change from machine to machine; the box on a
+    blade dropped the x row of either end. Ties now go to the earlier coordinate or row: one
+    partition under every perturbation, the model's own, with a well-conditioned Phi_d."""
+    from pinlin.assembly import partition
+
+    scene = (_box([{"name": "front", "frame": "blade_front"},
+                   {"name": "back", "frame": "blade_back"}]) if name == "blade"
+             else pinlin.Scene.resolve(name))
+    model = pinlin.linearize(scene)
+    q = model.operating_point.q
+    system = scene.system.anchored_at(q)
+    jac = system.constraints.jacobian(q)
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(20):
+        part = partition(system, q, jac * (1.0 + 1e-14 * rng.standard_normal(jac.shape)))
+        seen.add((tuple(system.coordinate_names[i] for i in part.independent), part.dropped))
+        assert part.condition < 1e3
+    assert seen == {(tuple(model.info["independent"]), tuple(model.info["dropped_rows"]))}

@@ -264,3 +264,34 @@ def test_a_mechanism_keeps_its_coordinates_and_condition_at_any_size(tmp_path, n
     assert c_ref < 1e3
     if conditions:
         np.testing.assert_allclose(conditions, conditions[0][0], rtol=1e-11)
+
+
+@pytest.mark.parametrize("name, s, k", [("slider_crank", 2.0 ** -8, 2.0 ** -24),
+                                        ("slider_crank", 2.0 ** 8, 2.0 ** 20),
+                                        ("delta", 2.0 ** -8, 2.0 ** -24),
+                                        ("standing_box", 2.0 ** 8, 2.0 ** 20)])
+def test_a_given_velocity_is_projected_alike_at_any_size(tmp_path, name, s, k):
+    """A velocity that does not satisfy the loops is projected onto those that do, to the
+    closest one. Closest in m/s beside rad/s, the choice depended on the size: the slider's
+    velocity (m/s) counted for nothing beside the crank's (rad/s) at 4 mm and for everything
+    at 256 m. In one unit (a linear coordinate's velocity over the robot's length) the
+    projected velocity of the scaled mechanism is the original's, scaled (linear ones by
+    sqrt(s), angular ones by 1/sqrt(s)), in the single call and in a trajectory (stacked for
+    the mechanisms, point by point for the box on its tip)."""
+    from pinlin.coordinates import linear_coordinates
+
+    v0 = np.random.default_rng(3).uniform(-1.0, 1.0, scaled_scene(name, 1.0, 1.0, tmp_path)
+                                          .system.nv)
+    projected = []
+    for scale, mass in ((1.0, 1.0), (s, k)):
+        scene = scaled_scene(name, scale, mass, tmp_path)
+        factor = np.where(linear_coordinates(scene.system), np.sqrt(scale), 1 / np.sqrt(scale))
+        op = pinlin.operating_point(scene)
+        v = v0 * factor
+        single = pinlin.linearize(scene, q=op.q, v=v, u=op.u).operating_point.v
+        trajectory = pinlin.linearize_trajectory(scene, op.q[None], v[None], op.u[None]).v[0]
+        np.testing.assert_allclose(trajectory, single, rtol=0, atol=1e-13 * np.abs(v).max())
+        assert np.abs(single - v).max() > 0.01 * np.abs(v).max()   # it was projected
+        projected.append(single / factor)
+    np.testing.assert_allclose(projected[1], projected[0], rtol=0,
+                               atol=1e-11 * np.abs(projected[0]).max())

@@ -66,7 +66,7 @@ def test_standing_robot_stays_on_its_contacts_and_conserves_energy(name, tilt, s
 def test_cli_simulates_a_standing_robot(capsys):
     from pinlin.cli import main
 
-    assert main(["simulate", "solo12_standing", "--t-end", "0.1", "--x0", "q:FL_HAA=0.01"]) == 0
+    assert main(["simulate", "solo12_standing", "--t-end", "0.1", "--x0", "q:FL_KFE=0.01"]) == 0
     out = capsys.readouterr().out
     assert "gravity, contacts" in out and "constraint drift" in out
 
@@ -89,7 +89,7 @@ def test_unreachable_initial_deviation_is_a_clear_error():
     for the other joints (Newton diverges): a ModelError that blames dx0, not numpy's
     LinAlgError."""
     with pytest.raises(pinlin.ModelError, match="at the initial state .* dx0 moves"):
-        pinlin.simulate("solo12_standing", [0.0, 0.01], dx0=[0, 0, 0, 1.0] + [0] * 8)
+        pinlin.simulate("solo12_standing", [0.0, 0.01], dx0=[0, 0, 1.0] + [0] * 9)  # HL_KFE
 
 
 def test_independent_deviation_is_bounded_like_the_full_one():

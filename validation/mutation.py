@@ -440,6 +440,24 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/assembly.py', "    weight = np.where(linear_coordinates(system), 1e3, 1.0)",
         "    weight = np.ones(system.nv)",
         "a box balanced on a point keeps its translations as states instead of its rotations"),
+    'partition_ties_to_rounding': (
+        'pinlin/assembly.py', '    return weight * tie_break(system.nv)', '    return weight',
+        "a symmetric robot's legs tie in the partition's pivoted QR and rounding picks its "
+        "states (another machine, other states)"),
+    'dropped_row_ties_to_rounding': (
+        'pinlin/assembly.py', '    diag, piv = pivoted_qr(jac.T * tie_break(jac.shape[0]))',
+        '    diag, piv = pivoted_qr(jac.T)',
+        "rounding picks which of two equal redundant contact rows is dropped"),
+    'velocity_projection_mixed_units': (
+        'pinlin/formulations/motion.py',
+        '        v, correction = project_velocity(G, v0, None if factors is None else factors[1])',
+        '        v, correction = project_velocity(G, v0)',
+        "a given velocity is projected to the closest consistent one in m/s beside rad/s "
+        "(a floating base's projection changes with its size)"),
+    'stacked_velocity_projection_mixed_units': (
+        'pinlin/formulations/moving_batch.py', '        factors = unit_factors(system)',
+        '        factors = None',
+        "a mechanism's stacked kernels project a given velocity in m/s beside rad/s"),
     'trajectory_stacked_condition_mixed_units': (
         'pinlin/trajectory_loops.py',
         '    Gd = in_one_unit(system, lk.jacobian(plan, J[1:last])[:, rows][:, :, dep], rows, dep)',

@@ -3,7 +3,7 @@ with every velocity term.
 
 The state is given (``solve = "none"`` or ``linearize(q=, v=, u=)``). pinlin closes the loops
 (:func:`pinlin.assembly.assemble`, z held), projects the given velocity onto the nullspace of
-Phi_q (orthogonally: the consistent velocity closest to the one given; the size of the
+Phi_q (the consistent velocity closest to the one given, in one unit; the size of the
 correction is reported), and solves the constrained dynamics there (a KKT system)::
 
     M a - G^T lam = tau - b,   G a = -gamma,   gamma = Phi_qq[v, v]
@@ -48,7 +48,7 @@ import pinocchio as pin
 
 from .. import loop_kernels as lk
 from ..arrays import read_only
-from ..assembly import Partition, assemble_guess, partition, projection
+from ..assembly import Partition, assemble_guess, partition, projection, unit_factors
 from ..chart import kinematic_block
 from ..derivatives import second_order_terms
 from ..equilibrium import ConstrainedPoint
@@ -82,13 +82,21 @@ def moving_point(system, q_guess: np.ndarray, v0: np.ndarray, u0: np.ndarray
     return state_at(system, q0, v0, u0, part, jac)
 
 
-def project_velocity(G: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(v, correction): the orthogonal projection of ``v0`` [rad/s or m/s] onto the nullspace
-    of G (the independent rows of Phi_q), v = v0 - G^T (G G^T)^-1 G v0: the consistent
-    velocity closest to the one given, and the correction v0 - v."""
+def project_velocity(G: np.ndarray, v0: np.ndarray, columns: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """(v, correction): the projection of ``v0`` [rad/s or m/s] onto the nullspace of G (the
+    independent rows of Phi_q), the consistent velocity closest to the one given, and the
+    correction v0 - v. Closest in one unit: with ``columns`` the column factors of
+    :func:`pinlin.assembly.unit_factors` (a linear coordinate's L, else 1; None: all 1),
+    |(v0 - v) / columns| is least, v = v0 - c G_c^T (G_c G_c^T)^-1 G v0 with G_c = G c, so the
+    projection of a slider's or a floating base's velocity does not depend on the robot's
+    size."""
     if not len(G):
         return v0.copy(), np.zeros_like(v0)
-    correction = G.T @ np.linalg.lstsq(G @ G.T, G @ v0, rcond=None)[0]
+    Gc = G if columns is None else G * columns
+    correction = Gc.T @ np.linalg.lstsq(Gc @ Gc.T, G @ v0, rcond=None)[0]
+    if columns is not None:
+        correction *= columns
     return v0 - correction, correction
 
 
@@ -109,7 +117,8 @@ def state_at(system, q0: np.ndarray, v0: np.ndarray, u0: np.ndarray, part: Parti
         M0 = st.M[0]
     else:
         G = jac[part.rows]
-        v, correction = project_velocity(G, v0)
+        factors = unit_factors(system)
+        v, correction = project_velocity(G, v0, None if factors is None else factors[1])
         a0, lam_k = _constrained_dynamics(system, q0, v, u0, G, part)
         lam = np.zeros(cons.size)
         lam[part.rows] = lam_k

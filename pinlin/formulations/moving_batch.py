@@ -36,6 +36,7 @@ import numpy as np
 import pinocchio as pin
 
 from .. import loop_kernels as lk
+from ..assembly import unit_factors
 
 
 class Stack(NamedTuple):
@@ -115,8 +116,12 @@ def states(system, plan: lk.ClosurePlan, Q: np.ndarray, V: np.ndarray, U: np.nda
     jac = lk.jacobian(plan, J)
     G = jac[:, rows]
     GT = G.transpose(0, 2, 1)
-    if len(rows):
-        corr = (GT @ np.linalg.solve(G @ GT, G @ V[:, :, None]))[..., 0]
+    if len(rows):   # closest in one unit, as motion.project_velocity
+        factors = unit_factors(system)
+        Gc, GcT = (G, GT) if factors is None else (G * factors[1], GT * factors[1][:, None])
+        corr = (GcT @ np.linalg.solve(Gc @ GcT, G @ V[:, :, None]))[..., 0]
+        if factors is not None:
+            corr *= factors[1]
     else:
         corr = np.zeros_like(V)
     v = V - corr
