@@ -134,8 +134,9 @@ class Partition:
         dependent: Velocity indices of the dependent coordinates.
         chosen: Whether pinlin chose z (True) or the scene named it.
         condition: 2-norm condition number of Phi_d, the Jacobian block of the dependent
-            coordinates (large near a singular, e.g. toggle, position); NaN when the
-            partition was made unchecked (a starting guess).
+            coordinates, in one unit (:func:`in_one_unit`; large near a singular, e.g.
+            toggle, position); NaN when the partition was made unchecked (a starting
+            guess).
     """
 
     rows: np.ndarray
@@ -158,21 +159,25 @@ def unit_factors(system) -> tuple[np.ndarray, np.ndarray] | None:
     reported its dependent block 6e4 times worse conditioned than at 1 m). Rows that are
     angles times L and columns of linear coordinates times L (L the robot's characteristic
     length at the scene's posture, :func:`pinlin.coordinates.characteristic_length`) put every
-    entry in m per rad: the choices scale with the robot. Computed once per scene and kept
-    by its constraint sets (however anchored)."""
+    entry in m per rad: the choices scale with the robot. One L per scene, at its own
+    posture (not at each call's q: the unit stays put while the robot moves), computed once
+    in Pinocchio data of its own and shared by the scene's constraint sets however anchored
+    (:meth:`pinlin.constraints.ConstraintSet.anchored_at`)."""
     cons = system.constraints
-    if not cons._unit_factors:
+    shared = cons._unit_factors   # one list for the scene's constraint sets
+    if not shared:
         rows = cons.linear_rows
         columns = linear_coordinates(system)
         if (rows.all() or not rows.any()) and (columns.all() or not columns.any()):
-            cons._unit_factors = (None,)
+            shared[:] = [None]
         else:
-            length = characteristic_length(system, system.scene_configuration)[0]
+            length = characteristic_length(system, system.scene_configuration,
+                                           own_data=True)[0]
             factors = (np.where(rows, 1.0, length), np.where(columns, length, 1.0))
             for arr in factors:
                 arr.setflags(write=False)
-            cons._unit_factors = factors
-    return None if cons._unit_factors[0] is None else cons._unit_factors
+            shared[:] = factors
+    return None if shared[0] is None else (shared[0], shared[1])
 
 
 def in_one_unit(system, G: np.ndarray, rows: np.ndarray | None = None,

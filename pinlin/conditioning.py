@@ -15,7 +15,10 @@ condition number cond. pinlin records the estimates it can get cheaply in
   its mass matrix had condition 2e11 and PR2's reported 9e6 where its scaled one is 69;
 - ``constraint_jacobian``: 2-norm condition of the dependent-coordinate block Phi_d of the
   loop Jacobian (a mechanism near a toggle or singular position: R ill-conditioned); warned
-  above 1e6, since near a fold it grows only like 1 / sqrt(distance to the fold).
+  above 1e6, since near a fold it grows only like 1 / sqrt(distance to the fold). Measured in
+  one unit (:func:`pinlin.assembly.in_one_unit`: a slider's or floating base's columns and
+  a weld's rotation rows times the robot's length), so that it does not change with the
+  robot's size.
 
 ``pinlin.modal`` warns the same way when an eigenvalue's condition number kappa times the
 rounding level of A exceeds 1e-8 of the eigenvalue.

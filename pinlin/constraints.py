@@ -196,7 +196,7 @@ class ConstraintSet:
         # the factors that put Phi_q in one unit (assembly.unit_factors).
         self._named_independent: tuple[np.ndarray, np.ndarray] | None = None
         self._assembly_cache = None
-        self._unit_factors: tuple = ()   # (rows, columns), or (None,) where one unit already
+        self._unit_factors: list = []   # [rows, columns], or [None] where one unit already
 
     def _add(self, names: list[str], kind: str, f1: int, f2: int | None,
              anchor: pin.SE3 | None, label: str) -> range:
@@ -303,7 +303,7 @@ class ConstraintSet:
         """The same constraints for ``system`` with the contacts anchored at configuration
         ``q`` (nq)."""
         other = ConstraintSet(system, self._mimics, anchor_q=q)
-        other._unit_factors = self._unit_factors   # of the robot, not of where it stands
+        other._unit_factors = self._unit_factors   # the robot's, shared: not where it stands
         return other
 
     def __bool__(self) -> bool:

@@ -341,7 +341,8 @@ def output_map(system: JointIndex) -> OutputMap | None:
     return OutputMap(tuple(rows), tuple(frames), tuple(names))
 
 
-def characteristic_length(system, q: np.ndarray) -> tuple[float, str]:
+def characteristic_length(system, q: np.ndarray, *, own_data: bool = False
+                          ) -> tuple[float, str]:
     """(L [m], what it is): the robot's own size, intrinsic to it and its posture at ``q``
     (not to where it stands). It turns a force into a moment in the norm of a least-norm
     statics split (:func:`pinlin.equilibrium.statics_split`) and a metre of a linear
@@ -353,14 +354,18 @@ def characteristic_length(system, q: np.ndarray) -> tuple[float, str]:
       ``pin.ccrba``);
     - where that vanishes (no mass, or all of it in one point), the root-mean-square
       distance of the joints' origins and the closure frames from their centroid;
-    - 1 m where those coincide too (nothing in it has a size)."""
-    data = system.data
+    - 1 m where those coincide too (nothing in it has a size).
+
+    ``own_data``: compute in fresh Pinocchio data, leaving the system's untouched (for a
+    caller in the middle of other kinematics)."""
+    data = system.model.createData() if own_data else system.data
     pin.ccrba(system.model, data, q, np.zeros(system.nv))
     mass = float(data.Ig.mass)
     spread = float(np.trace(data.Ig.inertia)) / (2.0 * mass) if mass > 0.0 else 0.0
     if spread > 0.0 and np.isfinite(spread):
         return float(np.sqrt(spread)), "the radius of gyration"
-    kin, kd = system.kin_model, system.kin_data
+    kin = system.kin_model
+    kd = kin.createData() if own_data else system.kin_data
     pin.framesForwardKinematics(kin, kd, system.kin_q(q))
     points = [kd.oMi[j].translation for j in range(1, kin.njoints)]
     points += [kd.oMf[f].translation for f in system.constraints.closure_frames()]

@@ -16,6 +16,7 @@ was called an equilibrium; a 0.1 mm five-bar closed to 4e-9 of its size).
 
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 import warnings
 import xml.etree.ElementTree as ET
@@ -231,8 +232,9 @@ def test_a_floating_robot_reports_one_mass_condition_at_any_size(tmp_path, s, k)
     ("slider_crank", 2.0 ** -14, 2.0 ** -8), ("delta", 2.0 ** -8, 2.0 ** -24)])
 def test_a_mechanism_keeps_its_coordinates_and_condition_at_any_size(tmp_path, name, s, k):
     """A floating base standing on its feet, a slider-crank and a delta (with linear
-    coordinates beside angular ones) choose their independent coordinates and measure the
-    condition of Phi_d in one unit, so both are the same at any size. In m/m beside m/rad
+    coordinates beside angular ones) choose their independent coordinates (the standing
+    robots; the mechanisms name theirs) and measure the condition of Phi_d in one unit, so
+    both are the same at any size. In m/m beside m/rad
     they were not: solo12 at 256 m chose other joints, the box on its tip chose its own
     translations at 256 m with Phi_d's condition 128 (1.6 at 1 m) and 32768 at 65 km, and the
     condition of a 61 um slider-crank read 6e4 times its value at 1 m, past the "near a
@@ -295,3 +297,26 @@ def test_a_given_velocity_is_projected_alike_at_any_size(tmp_path, name, s, k):
         projected.append(single / factor)
     np.testing.assert_allclose(projected[1], projected[0], rtol=0,
                                atol=1e-11 * np.abs(projected[0]).max())
+
+
+@pytest.mark.parametrize("s, k", [(1.0, 1.0), (2.0 ** -14, 2.0 ** -8)])
+def test_a_slider_parametrized_slider_crank_rechooses_its_coordinate_at_any_size(tmp_path,
+                                                                               s, k):
+    """The slider-crank parametrized by its slider, released with the crank turning: near the
+    crank and rod in line the slider is a poor coordinate (Phi_d of crank and rod nearly
+    singular) and the simulation re-chooses, comparing Phi_d's condition with a fresh
+    choice's in one unit. In m/m beside m/rad the fresh choice (slider and rod dependent)
+    looked no better and the simulation kept the slider, at 1 m as at 61 um. At both sizes
+    it now re-chooses once and follows the crank-parametrized motion (time stretched by
+    sqrt(s)) to 1e-7 rad."""
+    scene = scaled_scene("slider_crank", s, k, tmp_path)
+    spec = dataclasses.replace(scene.operating_point, independent=("slider",))
+    by_slider = dataclasses.replace(scene, operating_point=spec)
+    t = np.linspace(0.0, 3.0, 31) * np.sqrt(s)
+    ref = pinlin.simulate(scene, t, dx0=[0.0, 8.0 / np.sqrt(s)], rtol=1e-12, atol=1e-14 * s)
+    sim = pinlin.simulate(by_slider, t, q0=ref.q[0], v0=ref.v[0], u=lambda _: ref.u[0],
+                          atol=1e-12 * s)
+    assert sim.independent_names == ("q:slider", "v:slider")
+    assert sim.info["restarts"]["partition"] == 1
+    crank = scene.system.joint("crank").idx_q
+    assert np.abs(sim.q[:, crank] - ref.q[:, crank]).max() < 1e-7

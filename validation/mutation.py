@@ -458,6 +458,12 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/formulations/moving_batch.py', '        factors = unit_factors(system)',
         '        factors = None',
         "a mechanism's stacked kernels project a given velocity in m/s beside rad/s"),
+    'simulation_repartition_mixed_units': (
+        'pinlin/simulation_ode.py',
+        '        G1 = in_one_unit(self.system, G, self.rows)   # as partition() measures it',
+        '        G1 = G',
+        "the simulation compares Phi_d's condition with a fresh choice's in m/m beside m/rad "
+        "and keeps a slider-crank's slider through its singular positions"),
     'trajectory_stacked_condition_mixed_units': (
         'pinlin/trajectory_loops.py',
         '    Gd = in_one_unit(system, lk.jacobian(plan, J[1:last])[:, rows][:, :, dep], rows, dep)',
