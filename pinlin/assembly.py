@@ -261,9 +261,7 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
         independent, chosen = np.arange(nv), False
         dependent = complement(nv, independent)
     else:
-        piv = pivoted_qr(G * preference(system))[1]
-        independent = np.sort(piv[m:])
-        chosen = True
+        independent, chosen = choose_independent(system, G), True
         dependent = complement(nv, independent)
     if not check:
         return Partition(rows, dropped, independent, dependent, chosen, float("nan"))
@@ -275,6 +273,13 @@ def partition(system, q: np.ndarray, jac: np.ndarray | None = None, check: bool 
                          f"configuration (the Jacobian of the others is singular, condition "
                          f"{cond:.3g}); name other independent joints or move q")
     return Partition(rows, dropped, independent, dependent, chosen, cond)
+
+
+def choose_independent(system, G: np.ndarray) -> np.ndarray:
+    """pinlin's independent coordinates (ascending velocity indices) for the independent rows
+    ``G`` of Phi_q in one unit (:func:`in_one_unit`): the columns a pivoted QR of G weighted
+    by :func:`preference` does not take as dependent (its first len(G) pivots)."""
+    return np.sort(pivoted_qr(G * preference(system))[1][G.shape[0]:])
 
 
 def preference(system) -> np.ndarray:

@@ -44,7 +44,7 @@ import pinocchio as pin
 import scipy.linalg as sla
 
 from .arrays import complement
-from .assembly import in_one_unit, partition, preference
+from .assembly import choose_independent, in_one_unit, partition
 from .coordinates import FREE_FLYER, SPHERICAL
 from .exceptions import ModelError, ShapeError
 from .operating_point import OperatingPoint
@@ -327,8 +327,7 @@ class Mechanism:
         current = np.linalg.cond(G1[:, self.d])
         if current <= PARTITION_RATIO:  # a fresh choice cannot beat it by the ratio
             return None
-        _, _, piv = sla.qr(G1 * preference(self.system), mode="economic", pivoting=True)
-        independent = np.sort(piv[G.shape[0]:])
+        independent = choose_independent(self.system, G1)   # partition()'s fresh choice
         if current <= PARTITION_RATIO * np.linalg.cond(G1[:, complement(self.nv, independent)]):
             return None
         self._use(independent)
