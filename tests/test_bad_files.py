@@ -75,26 +75,45 @@ def fields_of(model: LinearModel) -> dict:
     return {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
 
 
+_CHILD_ENV: dict[str, str] = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _matplotlib_cache_of_its_own(tmp_path_factory):
+    """A matplotlib config folder for the limited children, its font cache built first without
+    a limit: a child that had to build it (a fresh machine, or a cache another run left
+    corrupt) would fail to write it beyond the limit, print matplotlib's complaints beside
+    pinlin's one line, and leave the user's own cache truncated at the limit (matplotlib
+    writes it in place)."""
+    folder = tmp_path_factory.mktemp("mplconfig")
+    env = {**os.environ, "MPLCONFIGDIR": str(folder)}
+    subprocess.run([sys.executable, "-c", "import matplotlib.font_manager"], env=env,
+                   check=True, timeout=600, capture_output=True)
+    _CHILD_ENV.update(env)
+    yield
+    _CHILD_ENV.clear()
+
+
+def _limit_files(limit: int):
+    def limit_files() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return limit_files
+
+
 def run_limited(argv: list[str], limit: int, cwd: Path) -> subprocess.CompletedProcess:
     """``pinlin argv`` in a child process whose files may not grow beyond ``limit`` bytes;
     SIGXFSZ is ignored so that write() fails with EFBIG instead of killing the child."""
-
-    def limit_files() -> None:
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
     code = "import sys; from pinlin.cli import main; sys.exit(main(sys.argv[1:]))"
-    return subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
-                          preexec_fn=limit_files, cwd=cwd, timeout=600, check=False)
+    return run_python_limited(code, limit, cwd, argv)
 
 
-def run_python_limited(source: str, limit: int, cwd: Path) -> subprocess.CompletedProcess:
-    def limit_files() -> None:
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
-    return subprocess.run([sys.executable, "-c", source], capture_output=True, text=True,
-                          preexec_fn=limit_files, cwd=cwd, timeout=600, check=False)
+def run_python_limited(source: str, limit: int, cwd: Path, argv: list[str] = ()
+                       ) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", source, *argv], capture_output=True,
+                          text=True, preexec_fn=_limit_files(limit), cwd=cwd, timeout=600,
+                          check=False, env=_CHILD_ENV or None)
 
 
 @pytest.fixture(scope="module")
