@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from .operating_point import OperatingPoint
 
 
-#: Largest gain entry taken (as :data:`pinlin.modal.ENTRY_LIMIT` for a model's matrices): a
+#: Largest gain entry taken (as :data:`pinlin.modal_input.ENTRY_LIMIT` for a model's matrices): a
 #: 1e155 velocity gain sent the stiff integrator's Jacobian to inf and out with a traceback.
 GAIN_LIMIT = 1e150
 

@@ -37,9 +37,7 @@ contact the force the world applies to the robot.
 from __future__ import annotations
 
 import functools
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -47,22 +45,13 @@ import pinocchio as pin
 
 from . import constraint_derivatives
 from .coordinates import slides_only
-from .exceptions import ModelError, SceneError, UrdfError
+from .exceptions import ModelError, SceneError
 from .loop_kernels import frame_jacobian
+from .mimic import MimicCoupling
 
 #: Prefix of a contact's constraint rows: ``contact:<name>.x`` ... ``.rz``.
 CONTACT_PREFIX = "contact:"
 _AXES = {"point": ("x", "y", "z"), "weld": ("x", "y", "z", "rx", "ry", "rz")}
-
-
-@dataclass(frozen=True)
-class MimicCoupling:
-    """q_mimic = multiplier * q_joint + offset, from a URDF ``<mimic>`` tag."""
-
-    mimic: str
-    joint: str
-    multiplier: float
-    offset: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,27 +91,6 @@ class _Closure(NamedTuple):
     f2: int | None
     row: int
     anchor: pin.SE3 | None
-
-
-def read_mimic_tags(urdf: Path) -> tuple[MimicCoupling, ...]:
-    """The ``<mimic>`` couplings of a URDF file, in file order."""
-    try:
-        root = ET.parse(urdf).getroot()
-    except ET.ParseError as exc:
-        raise UrdfError(urdf, f"malformed XML: {exc}") from None
-    out = []
-    for joint in root.findall("joint"):  # not <transmission><joint>
-        tag = joint.find("mimic")
-        if tag is None:
-            continue
-        try:
-            out.append(MimicCoupling(joint.get("name", ""), tag.get("joint", ""),
-                                     float(tag.get("multiplier", 1.0)),
-                                     float(tag.get("offset", 0.0))))
-        except ValueError:
-            raise UrdfError(urdf, f"joint '{joint.get('name')}': <mimic> multiplier and offset "
-                                  "must be numbers") from None
-    return tuple(out)
 
 
 class ConstraintSet:

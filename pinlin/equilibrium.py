@@ -48,7 +48,6 @@ from .assembly import (
     assemble,
     assemble_guess,
     cached_assembly,
-    lstsq_rank,
     named_independent,
     partition,
     projection,
@@ -56,6 +55,7 @@ from .assembly import (
 from .contacts import statics_notes
 from .coordinates import characteristic_length, linear_coordinates
 from .exceptions import EquilibriumError, SceneError
+from .lapack_direct import lstsq_rank
 from .operating_point import OperatingPoint, force_scale, residual_tolerance
 
 

@@ -275,7 +275,7 @@ def _add_equalities(spec: mujoco.MjSpec, system, dt: float, impedance: float) ->
             eq.data[6] = 1.0     # relative orientation (w, x, y, z): identity
             eq.data[10] = 1.0    # torque scale
     _add_contacts(spec, system, bodies, solref, solimp)
-    from .constraints import read_mimic_tags
+    from .mimic import read_mimic_tags
 
     if system.scene.effects.mimic:
         for c in read_mimic_tags(system.urdf_path):

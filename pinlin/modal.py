@@ -45,8 +45,6 @@ The printed table and how it labels modes: :mod:`pinlin.modal_table`.
 from __future__ import annotations
 
 import functools
-import math
-import numbers
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -55,9 +53,9 @@ from numpy.linalg import LinAlgError
 
 from . import eigensolvers as es
 from . import modal_table
-from .arrays import sum_of_squares
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
+from .modal_input import check_entries, check_rigid_tol
 
 if TYPE_CHECKING:
     from .modal_coordinates import ModalCoordinates
@@ -67,11 +65,6 @@ if TYPE_CHECKING:
 METHODS = ("auto", "symmetric", "general")
 RIGID_RTOL = 1e-6
 SYMMETRY_RTOL = 1e-8
-#: Largest |entry| of the matrices modal analyses. The eigensolvers and this module square
-#: entries (K + K^T, |lam|^2 = K/M, vector norms, kappa eps max|A|): 1e150^2 = 1e300 stays
-#: below float64's 1.8e308. A physical model in SI units is many decades below (see the
-#: ranges in :mod:`pinlin.fields`); one beyond is refused rather than analysed into inf/NaN.
-ENTRY_LIMIT = 1e150
 _EPS = float(np.finfo(float).eps)
 _TINY = float(np.finfo(float).tiny)
 
@@ -366,7 +359,7 @@ def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None =
         ArgumentError: ``model`` is not a LinearModel, ``method`` unknown, ``rigid_tol`` not a
             finite number >= 0.
         ModelError: a matrix of the model has a NaN, an inf or an entry beyond
-            :data:`ENTRY_LIMIT` (the message names the matrix and the entry).
+            :data:`pinlin.modal_input.ENTRY_LIMIT` (the message names the matrix and the entry).
         PinlinError: ``method="symmetric"`` for a model it does not apply to.
     """
     if not isinstance(model, LinearModel):
@@ -380,8 +373,8 @@ def modal(model: LinearModel, *, method: str = "auto", rigid_tol: float | None =
         raise ArgumentError("method", f"unknown eigensolver method {method!r:.60}; expected one "
                                       f"of {', '.join(METHODS)}")
     if rigid_tol is not None:
-        rigid_tol = _check_rigid_tol(rigid_tol)
-    a2: float | None = _check_entries(model)
+        rigid_tol = check_rigid_tol(rigid_tol)
+    a2: float | None = check_entries(model)
     if model.E is not None and np.count_nonzero(model.E):
         model, a2 = model.standard_form(), None
     if method == "general":
@@ -409,51 +402,6 @@ def _normalize_shapes(shapes: np.ndarray) -> np.ndarray:
     pivot = out[idx, np.arange(out.shape[1])]
     pivot = np.where(np.abs(pivot) > 0, pivot, 1.0)
     return out / pivot
-
-
-def _check_rigid_tol(rigid_tol: object) -> float:
-    """``rigid_tol`` as a float: a real number (not a bool), finite and >= 0 [rad/s]."""
-    bad = ArgumentError("rigid_tol", f"expected a finite number >= 0 [rad/s] or None, got "
-                                     f"{type(rigid_tol).__name__} {rigid_tol!r:.60}")
-    if not isinstance(rigid_tol, numbers.Real) or isinstance(rigid_tol, bool | np.bool_):
-        raise bad
-    try:
-        value = float(rigid_tol)
-    except (OverflowError, ValueError, TypeError):
-        raise bad from None
-    if not (math.isfinite(value) and value >= 0.0):
-        raise bad
-    return value
-
-
-def _check_entries(model: LinearModel) -> float:
-    """Refuse a model whose matrices modal reads hold NaN, inf or |entry| > ENTRY_LIMIT;
-    return sum A_ij^2 (|A|_F^2, which the general path's accuracy bound uses).
-
-    One dot product per matrix settles the usual case: sum x^2 <= ENTRY_LIMIT^2 holds for no
-    NaN, inf or entry beyond the limit (its square alone exceeds ENTRY_LIMIT^2); only a matrix
-    that fails it is searched entry by entry (many entries near the limit pass there)."""
-    limit2 = ENTRY_LIMIT * ENTRY_LIMIT
-    a2 = math.inf
-    for key in ("A", "E", "M", "C_damp", "K"):
-        mat = getattr(model, key)
-        if mat is None or mat.size == 0:
-            continue
-        total = sum_of_squares(mat)
-        if key == "A":
-            a2 = total
-        if total <= limit2:  # NaN compares False (BLAS ddot: no FP warnings)
-            continue
-        with np.errstate(invalid="ignore"):
-            bad = ~(np.abs(mat) <= ENTRY_LIMIT)  # NaN compares False
-        if not bad.any():
-            continue
-        i, j = (int(k) for k in np.argwhere(bad)[0])
-        raise ModelError(f"model '{model.name}': matrix {key} has {int(bad.sum())} entries "
-                         f"that are NaN, inf or beyond {ENTRY_LIMIT:g} in magnitude (first "
-                         f"{key}[{i}, {j}] = {mat[i, j]:.3g}); modal analysis needs finite "
-                         f"entries with |x| <= {ENTRY_LIMIT:g} (float64 squares them)")
-    return a2
 
 
 def _rigid_tol(largest: float, rigid_tol: float | None) -> float:

@@ -21,12 +21,17 @@ import functools
 import io
 from dataclasses import dataclass
 from os.path import join
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import PinlinError, RobotLoadError, UnknownRobotError
-from .urdf_io import build_model, complaint_summary, quiet_stderr, urdfdom_complaints
+from .exceptions import PinlinError, RobotLoadError, SceneError, UnknownRobotError
+from .urdf_io import build_model, complaint_summary, load_urdf, quiet_stderr, urdfdom_complaints
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 
 @dataclass(frozen=True)
@@ -157,3 +162,27 @@ def loadable_robots() -> dict[str, str | None]:
         except RobotLoadError as exc:
             result[name] = exc.reason
     return result
+
+
+def robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:
+    """The example-robot-data model of ``scene.robot`` and its reference configuration, with the
+    base the scene asks for (a free flyer locked at the reference pose for ``base = "fixed"``,
+    one added for ``"free"``)."""
+    rm = load_robot(scene.robot)
+    model, q_ref = rm.model, rm.q_ref
+    if scene.base == "fixed" and rm.free_flyer:
+        # Lock the free flyer at the reference pose: the rest of the model is untouched.
+        model = pin.buildReducedModel(model, [1], q_ref)
+        q_ref = q_ref[7:].copy()
+    elif scene.base == "free" and not rm.free_flyer:
+        from example_robot_data.robots_loader import ROBOTS, readParamsFromSrdf
+
+        loader = ROBOTS[scene.robot]
+        if not _uses_generic_recipe(loader):
+            raise SceneError(scene.source, "base", f"robot '{scene.robot}' is built by a custom "
+                                                   "loader; it cannot be given a floating base")
+        model = load_urdf(Path(rm.urdf_path), free_flyer=True)
+        q_ref = (readParamsFromSrdf(model, rm.srdf_path, False, loader.has_rotor_parameters,
+                                    loader.ref_posture)
+                 if rm.srdf_path is not None else pin.neutral(model))
+    return model, np.asarray(q_ref, float)

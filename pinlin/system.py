@@ -41,7 +41,7 @@ from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configu
     spring_vectors,
 )
 from .exceptions import SceneError, UnknownNameError
-from .robots import load_robot
+from .robots import load_robot, robot_model
 from .scene import Scene
 from .urdf_io import load_urdf
 
@@ -143,7 +143,7 @@ class System:
             check_system_memory(nv, njoints, rotating=rotating, what=what)
 
         if scene.robot is not None:
-            model, q_ref = _robot_model(scene)
+            model, q_ref = robot_model(scene)
         else:
             assert scene.urdf is not None
             model = load_urdf(scene.urdf, free_flyer=scene.base == "free", check=check)
@@ -495,7 +495,8 @@ class System:
 
     # ----------------------------------------------------------------------------------------
     def _constraints(self):
-        from .constraints import ConstraintSet, read_mimic_tags
+        from .constraints import ConstraintSet
+        from .mimic import read_mimic_tags
 
         mimics = ()
         if self.scene.effects.mimic:
@@ -506,34 +507,10 @@ class System:
         return ConstraintSet(self, mimics)
 
 
-def _robot_model(scene: Scene) -> tuple[pin.Model, np.ndarray]:
-    """example-robot-data model, with the base the scene asks for."""
-    rm = load_robot(scene.robot)
-    model, q_ref = rm.model, rm.q_ref
-    if scene.base == "fixed" and rm.free_flyer:
-        # Lock the free flyer at the reference pose: the rest of the model is untouched.
-        model = pin.buildReducedModel(model, [1], q_ref)
-        q_ref = q_ref[7:].copy()
-    elif scene.base == "free" and not rm.free_flyer:
-        from example_robot_data.robots_loader import ROBOTS, readParamsFromSrdf
-
-        from .robots import _uses_generic_recipe
-
-        loader = ROBOTS[scene.robot]
-        if not _uses_generic_recipe(loader):
-            raise SceneError(scene.source, "base", f"robot '{scene.robot}' is built by a custom "
-                                                   "loader; it cannot be given a floating base")
-        model = load_urdf(Path(rm.urdf_path), free_flyer=True)
-        q_ref = (readParamsFromSrdf(model, rm.srdf_path, False, loader.has_rotor_parameters,
-                                    loader.ref_posture)
-                 if rm.srdf_path is not None else pin.neutral(model))
-    return model, np.asarray(q_ref, float)
-
-
 def _known_finite(arr: np.ndarray) -> np.ndarray:
-    """:func:`pinlin.linear_model.known_finite` (imported here: linear_model imports this
-    module through operating_point)."""
-    from .linear_model import known_finite
+    """:func:`pinlin.model_checks.known_finite` (imported here: model_checks imports this
+    module through model_files and operating_point)."""
+    from .model_checks import known_finite
 
     return known_finite(arr)
 

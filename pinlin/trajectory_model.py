@@ -20,7 +20,8 @@ import numpy as np
 from .arrays import real_array, restore_read_only
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .fields import show
-from .linear_model import LinearModel, _names
+from .linear_model import LinearModel
+from .model_checks import name_tuple
 from .operating_point import OperatingPoint
 
 #: Key of a model's record of where its arrays came from (:mod:`pinlin.trajectory_buffers`):
@@ -122,7 +123,7 @@ class TrajectoryModel:
         names = {}
         for key in ("state_names", "input_names", "output_names"):
             # as a LinearModel's: distinct, non-blank, no control characters (at(k) makes one)
-            names[key] = _names(key, getattr(self, key), str(self.name))
+            names[key] = name_tuple(key, getattr(self, key), str(self.name))
             object.__setattr__(self, key, names[key])
         n, m, p = (len(names[k]) for k in ("state_names", "input_names", "output_names"))
         N = np.shape(self.A)[0] if np.ndim(self.A) == 3 else -1

@@ -17,15 +17,8 @@ import pytest
 import scipy.linalg as sla
 
 import pinlin
-from pinlin.assembly import (
-    ASSEMBLY_TOL,
-    AssemblyCache,
-    assembly_cache,
-    condition_2,
-    lstsq,
-    lstsq_rank,
-    pivoted_qr,
-)
+from pinlin.assembly import ASSEMBLY_TOL, AssemblyCache, assembly_cache
+from pinlin.lapack_direct import condition_2, lstsq, lstsq_rank, pivoted_qr
 from pinlin.operating_point import configuration
 from pinlin.scene import Scene, bundled_scenes
 

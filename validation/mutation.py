@@ -124,7 +124,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    if cp.partition.condition > SENSITIVITY_CHECK:", "    if False:",
         "no warning near a singular position of a mechanism"),
     "no_finiteness_check": (
-        "pinlin/linear_model.py", "        _check_finite(fields, model)", "        pass",
+        "pinlin/linear_model.py", "        check_finite(fields, model)", "        pass",
         "models with NaN or inf returned by the fast constructor"),
     "urdfdom_complaints_ignored": (
         "pinlin/urdf_io.py", "    if complaints:\n        raise UrdfError",
@@ -324,7 +324,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'moving = bool(v.any() or a.any()) or (self.lam is not None)',
         "a mechanism's schedule point at rest comes back as a moving (non-equilibrium) model"),
     'point_sizes_a_unchecked': (
-        'pinlin/linear_model.py',
+        'pinlin/model_checks.py',
         'for key in ("a", "residual"):',
         'for key in ("residual",):',
         "an operating point's a of the wrong size is accepted"),
