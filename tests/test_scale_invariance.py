@@ -151,8 +151,9 @@ def test_the_penalty_warns_where_its_alpha_is_small_for_the_masses(tmp_path):
     """The penalty formulation's alpha is in kg per constraint unit^2: the default 1e7 leaves
     the four-bar of kilograms its physical eigenvalues to 3e-8 of the independent model's,
     but the same four-bar of 1e6 kg at 1/128 of the size lost them (0.1) and gained an
-    unstable eigenvalue, silently. The bound in ``info`` covers the error measured against
-    the independent model (the reference), and the warning comes where it is large."""
+    unstable eigenvalue, silently. The estimate in ``info`` gives the error measured against
+    the independent model (the reference) within a factor 2, and the warning comes where it
+    is large (``test_penalty_error.py`` holds the estimate to a few per cent)."""
     for s, k, due in ((1.0, 1.0, False), (2.0 ** -7, 2.0 ** 20, True)):
         scene = scaled_scene("four_bar", s, k, tmp_path)
         exact = np.linalg.eigvals(pinlin.linearize(scene).A)
@@ -163,7 +164,7 @@ def test_the_penalty_warns_where_its_alpha_is_small_for_the_masses(tmp_path):
         error = max(np.abs(lam - x).min() / abs(x) for x in exact)
         warned = [w for w in caught if issubclass(w.category, pinlin.AccuracyWarning)
                   and "penalty alpha" in str(w.message)]
-        assert error <= model.info["penalty_error_bound"]
+        assert 0.5 * error <= model.info["penalty_error"] <= 2.0 * error
         assert bool(warned) == due
         assert (error > 1e-2) == due and (error < 1e-6) != due
 

@@ -430,6 +430,22 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/mode_pictures.py', '    return name, "m" if linear else "rad"',
         '    return name, "rad"',
         "a mode picture gives a slider's amplitude in rad"),
+    'penalty_error_halved': (
+        'pinlin/formulations/penalty_error.py',
+        '    shift = 2.0 * np.einsum("ij,ij->j", y.conj(), (A - A_double) @ x)',
+        '    shift = np.einsum("ij,ij->j", y.conj(), (A - A_double) @ x)',
+        "the penalty's error taken as lam(alpha) - lam(2 alpha), half of it"),
+    'penalty_error_counts_constraint_modes': (
+        'pinlin/formulations/penalty_error.py',
+        '    physical = ~constraint_modes(G, right[:n]) & (np.abs(lam) > scale)',
+        '    physical = np.abs(lam) > scale',
+        "the penalty's error estimate counts the constraint modes (a defective double root "
+        "with mu = 1): warnings on every mechanism"),
+    'moving_penalty_error_same_alpha': (
+        'pinlin/formulations/motion.py',
+        '    error = penalty_error(A, linearized(2.0 * alpha)[0], G, alpha, system.scene.name)',
+        '    error = penalty_error(A, linearized(alpha)[0], G, alpha, system.scene.name)',
+        "a moving state's penalty error estimated as zero (no warning at a far too small alpha)"),
     'partition_in_mixed_units': (
         'pinlin/assembly.py',
         '    scaled = in_one_unit(system, jac)   # the choices and the condition, in one unit',

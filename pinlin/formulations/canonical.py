@@ -20,11 +20,11 @@ from .constrained import (
     _alt,
     _info,
     _penalty_setup,
-    penalty_error_bound,
     penalty_first_order,
     penalty_numeric_info,
 )
 from .independent import output_matrices
+from .penalty_error import penalty_error
 
 
 def canonical_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarray,
@@ -122,8 +122,9 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     n = system.nv
     G = cp.jacobian
     C = terms.C if terms.C is not None else np.zeros((n, n))
-    bound = penalty_error_bound(terms.M, C, terms.K, G, alpha, mu, omega, system.scene.name)
     A, B, Mp_inv, A_pen = canonical_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega)
+    error = penalty_error(A_pen, penalty_first_order(terms.M, C, terms.K, G, S, 2.0 * alpha,
+                                                     mu, omega)[0], G, alpha, system.scene.name)
     gap = (_check_canonical_spectrum(A, A_pen, G, alpha, system.scene.name) if G.size
            else 0.0)
     alt = _alt(terms)
@@ -140,7 +141,7 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     if system.outputs is None:
         Cout, out_names, y0 = np.eye(2 * n), states, np.zeros(2 * n)
     info = _info(system, op, cp, "canonical", terms.backend, alpha=alpha, mu=mu,
-                 omega=omega, penalty_error_bound=bound, **numeric)
+                 omega=omega, penalty_error=error, **numeric)
     info["condition"]["canonical_vs_penalty_spectrum"] = gap
     return LinearModel(A=A, B=B, C=Cout, D=np.zeros((Cout.shape[0], S.shape[1])),
                        state_names=states, input_names=system.input_names,

@@ -32,6 +32,7 @@ First-order models follow Rowell: x = [dz; z'] (independent), [dq; v] (penalty),
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -55,6 +56,7 @@ from ..linear_model import LinearModel
 from ..operating_point import OperatingPoint
 from ..options import BASES, PENALTY_DEFAULTS, Penalty
 from .independent import output_matrices
+from .penalty_error import penalty_error
 
 #: Default penalty parameters: alpha [kg or kg*m^2 per row unit^2], Omega [rad/s], mu [-].
 
@@ -123,82 +125,60 @@ def penalty_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarr
     C_p (the penalty force's dependence on the motion at a moving state): rotated, they too
     fill only the constrained rows, as alpha S U^T X Q.
     """
+    return penalty_elimination(M, C, K, G, Bu, mu, omega, K_extra, C_extra)(alpha)
+
+
+def penalty_elimination(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarray,
+                        Bu: np.ndarray, mu: float, omega: float,
+                        K_extra: np.ndarray | None = None, C_extra: np.ndarray | None = None
+                        ) -> Callable[[float], tuple[np.ndarray, np.ndarray]]:
+    """:func:`penalty_first_order` as a function of alpha: the SVD of G and the rotation by Q
+    are done once, each alpha then costs the elimination alone (the error estimate needs the
+    model at alpha and 2 alpha, :mod:`pinlin.formulations.penalty_error`). The same
+    arithmetic as one call, so the model at alpha is the same to the bit."""
     n, m = M.shape[0], G.shape[0]
     if m == 0:
-        return first_order(M, C, K, Bu)
+        return lambda alpha: first_order(M, C, K, Bu)
     u_svd, sv, vt = np.linalg.svd(G)
     Q = np.hstack([vt[m:].T, vt[:m].T])  # [Z, N]
     f = n - m
     w = sv[:m] ** 2
-    Mt, Ct, Kt, Bt = Q.T @ M @ Q, Q.T @ C @ Q, Q.T @ K @ Q, Q.T @ Bu
+    Mt, Ct0, Kt0, Bt = Q.T @ M @ Q, Q.T @ C @ Q, Q.T @ K @ Q, Q.T @ Bu
     Mt = 0.5 * (Mt + Mt.T)
     eta = np.arange(f, n)
-    Ct[eta, eta] += 2.0 * alpha * mu * omega * w
-    Kt[eta, eta] += alpha * omega**2 * w
-    if K_extra is not None:
-        Kt[f:] += alpha * (sv[:m, None] * (u_svd.T @ K_extra @ Q))
-    if C_extra is not None:
-        Ct[f:] += alpha * (sv[:m, None] * (u_svd.T @ C_extra @ Q))
-    D = Mt[f:, f:].copy()
-    D[np.arange(m), np.arange(m)] += alpha * w
-    rhs = np.hstack([Kt, Ct, Bt])
-    Dfac = sla.cho_factor(D)
-    DinvM = sla.cho_solve(Dfac, Mt[f:, :f])         # D^-1 M_eta,z
-    Dinv_rhs = sla.cho_solve(Dfac, rhs[f:])          # D^-1 Y_eta
-    X = np.zeros_like(rhs)
-    if f:
-        schur = Mt[:f, :f] - Mt[:f, f:] @ DinvM
-        X[:f] = sla.solve(0.5 * (schur + schur.T), rhs[:f] - Mt[:f, f:] @ Dinv_rhs,
-                          assume_a="pos")
-    X[f:] = Dinv_rhs - DinvM @ X[:f]
-    XK, XC, XB = X[:, :n], X[:, n:2 * n], X[:, 2 * n:]
-    A = np.zeros((2 * n, 2 * n))
-    A[:n, n:] = np.eye(n)
-    A[n:, :n] = -(Q @ XK @ Q.T)
-    A[n:, n:] = -(Q @ XC @ Q.T)
-    B = np.zeros((2 * n, Bu.shape[1]))
-    B[n:] = Q @ XB
-    return A, B
+    KX = None if K_extra is None else sv[:m, None] * (u_svd.T @ K_extra @ Q)
+    CX = None if C_extra is None else sv[:m, None] * (u_svd.T @ C_extra @ Q)
 
+    def at(alpha: float) -> tuple[np.ndarray, np.ndarray]:
+        Ct, Kt = Ct0.copy(), Kt0.copy()
+        Ct[eta, eta] += 2.0 * alpha * mu * omega * w
+        Kt[eta, eta] += alpha * omega**2 * w
+        if KX is not None:
+            Kt[f:] += alpha * KX
+        if CX is not None:
+            Ct[f:] += alpha * CX
+        D = Mt[f:, f:].copy()
+        D[np.arange(m), np.arange(m)] += alpha * w
+        rhs = np.hstack([Kt, Ct, Bt])
+        Dfac = sla.cho_factor(D)
+        DinvM = sla.cho_solve(Dfac, Mt[f:, :f])         # D^-1 M_eta,z
+        Dinv_rhs = sla.cho_solve(Dfac, rhs[f:])          # D^-1 Y_eta
+        X = np.zeros_like(rhs)
+        if f:
+            schur = Mt[:f, :f] - Mt[:f, f:] @ DinvM
+            X[:f] = sla.solve(0.5 * (schur + schur.T), rhs[:f] - Mt[:f, f:] @ Dinv_rhs,
+                              assume_a="pos")
+        X[f:] = Dinv_rhs - DinvM @ X[:f]
+        XK, XC, XB = X[:, :n], X[:, n:2 * n], X[:, 2 * n:]
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:, :n] = -(Q @ XK @ Q.T)
+        A[n:, n:] = -(Q @ XC @ Q.T)
+        B = np.zeros((2 * n, Bu.shape[1]))
+        B[n:] = Q @ XB
+        return A, B
 
-#: A penalty or canonical model warns where :func:`penalty_error_bound` exceeds this: its
-#: physical eigenvalues may be off in their third digit (the bound runs 7-50x above the error
-#: measured against the independent model on pinlin's bundled mechanisms and standing robots).
-PENALTY_WARN = 1e-3
-
-
-def penalty_error_bound(M: np.ndarray, C: np.ndarray | None, K: np.ndarray, G: np.ndarray,
-                        alpha: float, mu: float, omega: float, name: str,
-                        stacklevel: int = 4) -> float:
-    """The relative error a finite penalty leaves in the physical eigenvalues, bounded to first
-    order in 1/alpha, with an AccuracyWarning above :data:`PENALTY_WARN`.
-
-    The constraint coordinates yield to the forces the physical motion puts on them (inertia
-    M, damping C, stiffness K, of the dynamics without the penalty) against the penalty's
-    alpha s^2 (mass), 2 alpha mu Omega s^2 (damping) and alpha Omega^2 s^2 (stiffness), s the
-    smallest singular value of G: the bound is
-    max(|M|, |C| / (2 mu Omega), |K| / Omega^2) / (alpha s^2) (infinity norms). alpha is in
-    kg (kg*m^2) per constraint unit^2: the default 1e7 suits robots of kilograms and
-    metres; the same model in tonnes lost its second digit and, where the geometric stiffness
-    outgrew alpha Omega^2 s^2, gained a positive eigenvalue (a four-bar of 1e6 kg at 1 cm).
-    Returns the bound (0 without constraint rows)."""
-    if G.shape[0] == 0:
-        return 0.0
-    s = float(np.linalg.svd(G, compute_uv=False)[-1])
-
-    def norm(X: np.ndarray | None) -> float:
-        return 0.0 if X is None else float(np.abs(X).sum(axis=1).max(initial=0.0))
-
-    with np.errstate(divide="ignore", over="ignore"):
-        bound = max(norm(M), norm(C) / (2.0 * mu * omega), norm(K) / omega**2) / (alpha * s * s)
-    if not bound <= PENALTY_WARN:   # NaN or inf too (s = 0: a singular G)
-        suggestion = min(alpha * bound / 1e-6, 1e14)
-        warnings.warn(AccuracyWarning(
-            f"model '{name}': the penalty alpha = {alpha:.3g} is small for this system's "
-            f"mass and stiffness: its physical eigenvalues may be off by up to {bound:.1e} "
-            f"(relative, first-order bound); raise alpha (about {suggestion:.1e} for 1e-6) or "
-            "use the independent formulation", bound), stacklevel=stacklevel)
-    return bound
+    return at
 
 
 def _info(system, op: OperatingPoint, cp: ConstrainedPoint, formulation: str, backend: str,
@@ -466,9 +446,9 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     alpha, mu, omega, Mp, Cp, Kp, terms, S = _penalty_setup(
         system, op, cp, derivatives, step, alpha, mu, omega, estimate_error)
     C = terms.C if terms.C is not None else np.zeros_like(terms.M)
-    bound = penalty_error_bound(terms.M, C, terms.K, cp.jacobian, alpha, mu, omega,
-                                system.scene.name)
-    A, B = penalty_first_order(terms.M, C, terms.K, cp.jacobian, S, alpha, mu, omega)
+    elimination = penalty_elimination(terms.M, C, terms.K, cp.jacobian, S, mu, omega)
+    A, B = elimination(alpha)
+    error = penalty_error(A, elimination(2.0 * alpha)[0], cp.jacobian, alpha, system.scene.name)
     alt = _alt(terms)
     A_alt = Mp_inv = None
     if alt is not None:
@@ -480,7 +460,7 @@ def linearize_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *,
                                      omega)[1][n:]
     Cout, D, out_names, y0 = output_matrices(system, op)
     info = _info(system, op, cp, "penalty", terms.backend, alpha=alpha, mu=mu,
-                 omega=omega, penalty_error_bound=bound,
+                 omega=omega, penalty_error=error,
                  **penalty_numeric_info(terms, A, A_alt, Mp_inv, C))
     return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
                        input_names=system.input_names, output_names=out_names, M=Mp,

@@ -309,12 +309,45 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
     (K with the geometric stiffness -lam_p^T Phi_qq), formed by the same stable elimination
     as at rest (:func:`~pinlin.formulations.constrained.penalty_first_order`); f0 = [v0; a_p].
     """
-    from .constrained import _info, penalty_error_bound, penalty_first_order, penalty_parameters
+    from .constrained import _info, penalty_first_order, penalty_parameters
+    from .penalty_error import penalty_error
 
     alpha, mu, omega = penalty_parameters(alpha, mu, omega)
+    G, nv, S = cp.jacobian, system.nv, system.input_matrix
+
+    def linearized(alpha: float):
+        pop, terms, C, K_extra, C_extra = _moving_penalty_terms(system, op, cp, alpha, mu,
+                                                                 omega)
+        A, B = penalty_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega,
+                                   K_extra=K_extra, C_extra=C_extra)
+        N = kinematic_block(system, op.v)
+        if N is not None:  # Lie-group joints at a moving state (pinlin.chart)
+            A[:nv, :nv] = N
+        return A, B, pop, terms, C, K_extra, C_extra
+
+    A, B, pop, terms, C, K_extra, C_extra = linearized(alpha)
+    # The penalty's error: the same linearization with 2 alpha (its state a_p, lam_p too).
+    error = penalty_error(A, linearized(2.0 * alpha)[0], G, alpha, system.scene.name)
+    a_p = pop.a
+    GtG = G.T @ G
+    Cout, D, out_names, y0 = output_matrices(system, pop)
+    info = _info(system, pop, cp, "penalty", "analytic", alpha=alpha, mu=mu, omega=omega,
+                 penalty_error=error)
+    return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
+                       input_names=system.input_names, output_names=out_names,
+                       M=terms.M + alpha * GtG,
+                       C_damp=C + alpha * G.T @ (C_extra + 2.0 * mu * omega * G),
+                       K=terms.K + alpha * G.T @ (K_extra + omega**2 * G), Bu=S, G=G,
+                       operating_point=pop.with_outputs(y0), name=system.scene.name, info=info,
+                       f0=np.concatenate([op.v, a_p]))
+
+
+def _moving_penalty_terms(system, op: OperatingPoint, cp: ConstrainedPoint, alpha: float,
+                          mu: float, omega: float):
+    """(the penalty model's own state (a_p, lam_p), its second-order terms, C, K_extra,
+    C_extra) of :func:`linearize_moving_penalty` for this alpha."""
     cons = system.constraints
-    part, G = cp.partition, cp.jacobian
-    rows = part.rows
+    G, rows = cp.jacobian, cp.partition.rows
     nv, m = system.nv, len(rows)
     M = system.mass_matrix(op.q)
     rhs = np.concatenate([system.applied_force(op.q, op.v, op.u)
@@ -336,24 +369,7 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
         K_extra = (cons.jacobian_variation(op.q, a_p)[rows]
                    + _gamma_derivative(system, pop)[rows] + 2.0 * mu * omega * jv)
         C_extra = 2.0 * jv
-    S = system.input_matrix
-    bound = penalty_error_bound(terms.M, C, terms.K, G, alpha, mu, omega, system.scene.name)
-    A, B = penalty_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega,
-                               K_extra=K_extra, C_extra=C_extra)
-    N = kinematic_block(system, op.v)
-    if N is not None:  # Lie-group joints at a moving state (pinlin.chart)
-        A[:nv, :nv] = N
-    GtG = G.T @ G
-    Cout, D, out_names, y0 = output_matrices(system, pop)
-    info = _info(system, pop, cp, "penalty", "analytic", alpha=alpha, mu=mu, omega=omega,
-                 penalty_error_bound=bound)
-    return LinearModel(A=A, B=B, C=Cout, D=D, state_names=system.state_names,
-                       input_names=system.input_names, output_names=out_names,
-                       M=terms.M + alpha * GtG,
-                       C_damp=C + alpha * G.T @ (C_extra + 2.0 * mu * omega * G),
-                       K=terms.K + alpha * G.T @ (K_extra + omega**2 * G), Bu=S, G=G,
-                       operating_point=pop.with_outputs(y0), name=system.scene.name, info=info,
-                       f0=np.concatenate([op.v, a_p]))
+    return pop, terms, C, K_extra, C_extra
 
 
 def _gamma_derivative(system, op: OperatingPoint) -> np.ndarray:
