@@ -430,7 +430,9 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     sim.add_argument("--method", default=None, help="solve_ivp method (default: DOP853, or "
                                                     "Radau for stiff scenes)")
     sim.add_argument("--rtol", type=float, default=1e-10, help="relative tolerance")
-    sim.add_argument("--atol", type=float, default=1e-12, help="absolute tolerance")
+    sim.add_argument("--atol", type=float, default=None,
+                     help="absolute tolerance in the state's units (default 1e-12 per rad or "
+                          "rad/s, 1e-12 L per m or m/s, L the robot's characteristic length)")
     sim.set_defaults(func=_cmd_simulate)
     res = sub.add_parser("response", help="the linear model's response (chapter 9.3) to an "
                                           "initial state and inputs")

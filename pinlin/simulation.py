@@ -26,6 +26,7 @@ oscillations do not count: every method must resolve them. A horizon of more tha
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from .arrays import read_only, real_array, sample_times
+from .coordinates import characteristic_length, linear_coordinates
 from .exceptions import ArgumentError, ModelError
 from .formulations.constrained import constrained_effects
 from .linearization import _system, operating_point
@@ -78,7 +80,8 @@ class Simulation:
             on a multi-DoF joint, feedback (``info["energy"]`` says why).
         operating_point: The point simulated about (q0, v0, u0).
         state_names, independent_names, input_names, output_names: Column names of x, z, u, y.
-        info: solver, method and why, rtol, atol, nfev, njev, nlu, steps (accepted),
+        info: solver, method and why, rtol, atol (and atol_linear [m, m/s] where the default
+            was scaled by the robot's length), nfev, njev, nlu, steps (accepted),
             restarts (chart, partition, input), stiffness (rho * T), coordinates, energy
             (what it holds, or why it is None), feedback (none, a gain of shape (nu, n) or a
             callable), effects, notes.
@@ -160,9 +163,12 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: Inputs, t: np.ndarray
 
 
 def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: str,
-               rtol: float, atol: float) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+               rtol: float, atol: float | Callable[[Any], np.ndarray]
+               ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """(q, v) at the times t, and the solver statistics. The solver is restarted (with its
-    last step size) where the coordinates change (dyn.after_step) or a held input changes."""
+    last step size) where the coordinates change (dyn.after_step) or a held input changes.
+    ``atol``: a number, or a function of dyn giving one per state entry (taken at every
+    start: a mechanism's independent coordinates may have changed)."""
     import scipy.integrate  # here: it costs ~0.3 s to import, which only simulate pays
 
     solver_class = getattr(scipy.integrate, method)
@@ -181,7 +187,7 @@ def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: 
         def fun(tt: float, ss: np.ndarray, u_held: np.ndarray | None = u_held) -> np.ndarray:
             return dyn.rhs(tt, ss, inputs.total(tt, lambda: dyn.model_state(ss), u_held))
 
-        options: dict[str, Any] = {"rtol": rtol, "atol": atol}
+        options: dict[str, Any] = {"rtol": rtol, "atol": atol(dyn) if callable(atol) else atol}
         if h is not None:
             options["first_step"] = min(h, t_end - ts)
         with np.errstate(over="ignore", invalid="ignore"):   # simulate refuses non-finite
@@ -289,6 +295,11 @@ def _time_grid(t: object) -> np.ndarray:
 MAX_SAMPLES = 1_000_000
 
 
+#: The default absolute tolerance: per radian of an angle and per rad/s of a rate; per L
+#: metres of a length and per L m/s of a linear velocity, L the robot's characteristic length
+#: (:func:`pinlin.coordinates.characteristic_length`), so that a robot made smaller or larger
+#: is integrated to the same relative accuracy.
+ATOL = 1e-12
 #: The smallest relative tolerance scipy's solvers honour (100 x machine epsilon).
 RTOL_MIN = 100 * np.finfo(float).eps
 
@@ -307,7 +318,7 @@ def _tolerance(name: str, value: object) -> float:
         raise ArgumentError(name, f"{value:g} allows absolute errors of a radian or a metre (a "
                                   "radian or a metre per second) per step, as large as the "
                                   "motion itself; an absolute tolerance is below 1 (the "
-                                  "default is 1e-12)")
+                                  "default is 1e-12 per radian)")
     if name == "rtol" and value < RTOL_MIN:   # scipy would raise it with a warning
         raise ArgumentError(name, f"{value:g} is below {RTOL_MIN:.3g} (100 x machine "
                                   f"epsilon), the smallest relative tolerance the solvers "
@@ -321,7 +332,7 @@ def _tolerance(name: str, value: object) -> float:
 def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: object = None, *,
              feedback: object = None, q0: np.ndarray | None = None,
              v0: np.ndarray | None = None,
-             rtol: float = 1e-10, atol: float = 1e-12, method: str | None = None
+             rtol: float = 1e-10, atol: float | None = None, method: str | None = None
              ) -> Simulation:
     """The scene's nonlinear motion about its operating point (module docstring).
 
@@ -357,7 +368,10 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
             ``pinlin.operating_point(scene, q=q0, v=v0)``: q0 alone (nq) keeps the scene's
             ``solve`` (u0 holds q0 at rest); with v0 (nv) [rad/s or m/s] the state is given
             and u0 is the scene's ``u`` (else zero), e.g. a floating base in free fall.
-        rtol, atol: Solver tolerances (relative; absolute in the state's units).
+        rtol, atol: Solver tolerances: relative; absolute in the state's units [rad, m, rad/s,
+            m/s]. Default atol: :data:`ATOL` per radian (rad/s) and ATOL L per metre (m/s), L
+            the robot's characteristic length at the operating point (a slider of a 61 um
+            mechanism held to 1e-12 m would be integrated 1e4 times looser than its angles).
         method: One of ``METHODS`` (scipy's names); None chooses DOP853 or Radau by the
             stiffness criterion (module docstring).
 
@@ -370,7 +384,8 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     """
     system = _system(scene)
     grid = _time_grid(t)
-    rtol, atol = _tolerance("rtol", rtol), _tolerance("atol", atol)
+    rtol = _tolerance("rtol", rtol)
+    atol = None if atol is None else _tolerance("atol", atol)
     if method is not None and method not in METHODS:
         raise ArgumentError("method", f"expected one of {', '.join(METHODS)} or None, got "
                                       f"{method!r}")
@@ -402,7 +417,13 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
         method = chosen
     else:
         stiffness, why = float("nan"), "given"
-    Q, V, stats = _integrate(dyn, inputs, grid, s0, method, rtol, atol)
+    length = None
+    if atol is None:
+        atol = ATOL
+        if linear_coordinates(system).any():
+            length = characteristic_length(system, op.q)[0]
+    Q, V, stats = _integrate(dyn, inputs, grid, s0, method, rtol, atol if length is None else
+                             lambda d: np.where(d.linear_state(), atol * length, atol))
     finite = np.isfinite(Q).all(axis=1) & np.isfinite(V).all(axis=1)
     if not finite.all():
         raise ModelError(f"the integration overflowed ({method}): the state is not finite "
@@ -422,7 +443,8 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     U = np.array([inputs.total(float(ti), lambda x=x: x) for ti, x in zip(grid, X, strict=True)]
                  ).reshape(grid.size, op.u.size)
     info = {"solver": f"scipy.integrate.{method}", "method": method, "method_reason": why,
-            "stiffness": stiffness, "rtol": rtol, "atol": atol, **stats,
+            "stiffness": stiffness, "rtol": rtol, "atol": atol,
+            **({} if length is None else {"atol_linear": atol * length}), **stats,
             "coordinates": ("independent (dz, z'), loops closed by Newton at every evaluation"
                             if isinstance(dyn, Mechanism) else
                             "chart (dq, v) about a reference re-centred past "

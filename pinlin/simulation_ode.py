@@ -45,7 +45,7 @@ import scipy.linalg as sla
 
 from .arrays import complement
 from .assembly import choose_independent, in_one_unit, partition
-from .coordinates import FREE_FLYER, SPHERICAL
+from .coordinates import FREE_FLYER, SPHERICAL, linear_coordinates
 from .exceptions import ModelError, ShapeError
 from .operating_point import OperatingPoint
 from .system import System
@@ -153,6 +153,12 @@ class OpenChain:
 
     def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return pin.integrate(self.model, self.q_ref, s[:self.nv]), s[self.nv:].copy()
+
+    def linear_state(self) -> np.ndarray:
+        """Which entries of s are lengths [m] and linear velocities [m/s] (the others are
+        angles [rad] and rates [rad/s])."""
+        linear = linear_coordinates(self.system)
+        return np.concatenate([linear, linear])
 
     def after_step(self, s: np.ndarray) -> tuple[np.ndarray, str] | None:
         """A re-centred state when the chart's angles exceed CHART_LIMIT, else None."""
@@ -280,6 +286,12 @@ class Mechanism:
     def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q, _, R = self._configure(s)
         return q, R @ s[self.z.size:]
+
+    def linear_state(self) -> np.ndarray:
+        """Which entries of s (the current independent coordinates and their rates) are
+        lengths [m] and linear velocities [m/s]."""
+        linear = linear_coordinates(self.system)[self.z]
+        return np.concatenate([linear, linear])
 
     def model_state(self, s: np.ndarray) -> np.ndarray:
         """x = [difference(q0, q); v - v0] at state ``s`` (all nv coordinates; what a feedback

@@ -446,6 +446,12 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '    error = penalty_error(A, linearized(2.0 * alpha)[0], G, alpha, system.scene.name)',
         '    error = penalty_error(A, linearized(alpha)[0], G, alpha, system.scene.name)',
         "a moving state's penalty error estimated as zero (no warning at a far too small alpha)"),
+    'simulate_atol_unscaled': (
+        'pinlin/simulation.py',
+        '                             lambda d: np.where(d.linear_state(), atol * length, atol))',
+        '                             lambda d: np.full(d.linear_state().size, atol))',
+        "simulate's default absolute tolerance 1e-12 m on a slider of any size (a 61 um "
+        "mechanism integrated 1e4 times looser than its angles loses its loops)"),
     'partition_in_mixed_units': (
         'pinlin/assembly.py',
         '    scaled = in_one_unit(system, jac)   # the choices and the condition, in one unit',
