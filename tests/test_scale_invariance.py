@@ -322,3 +322,25 @@ def test_a_slider_parametrized_slider_crank_rechooses_its_coordinate_at_any_size
     assert sim.info["restarts"]["partition"] == 1
     crank = scene.system.joint("crank").idx_q
     assert np.abs(sim.q[:, crank] - ref.q[:, crank]).max() < 1e-7
+
+
+@pytest.mark.parametrize("s, k", [(2.0 ** -8, 2.0 ** -24), (2.0 ** 8, 2.0 ** 20)])
+def test_the_sensitivity_check_moves_alike_at_any_size(tmp_path, s, k):
+    """Near a singular position a mechanism's model is rebuilt at the configurations the
+    assembly cannot tell apart, q0 -/+ d w with w the weakest direction of Phi_d. The
+    slider-crank's dependent coordinates are the rod [rad] and the slider [m]: in mixed units
+    that direction leaned to the slider at 4 mm and to the rod at 256 m. In one unit the move
+    is the same, its length scaled by s (the reference: dynamic similarity)."""
+    from pinlin.equilibrium import solve_constrained
+    from pinlin.formulations.constrained import indistinguishable_move
+
+    moves = []
+    for scale, mass in ((1.0, 1.0), (s, k)):
+        system = scaled_scene("slider_crank", scale, mass, tmp_path).system
+        q = system.scene_configuration.copy()
+        op, cp = solve_constrained(system, q)
+        move = indistinguishable_move(system, op, cp)
+        slider = system.joint("slider").idx_v
+        move[slider] /= scale
+        moves.append(move)
+    np.testing.assert_allclose(moves[1], moves[0], rtol=1e-9, atol=0)

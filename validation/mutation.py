@@ -452,6 +452,12 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '                             lambda d: np.full(d.linear_state().size, atol))',
         "simulate's default absolute tolerance 1e-12 m on a slider of any size (a 61 um "
         "mechanism integrated 1e4 times looser than its angles loses its loops)"),
+    'sensitivity_move_mixed_units': (
+        'pinlin/formulations/constrained.py',
+        '    length = np.ones(dep.size) if factors is None else factors[1][dep]',
+        '    length = np.ones(dep.size)',
+        "the sensitivity check's move near a singular position is Phi_d's weakest direction "
+        "in m beside rad: the check probes other configurations at another size"),
     'partition_in_mixed_units': (
         'pinlin/assembly.py',
         '    scaled = in_one_unit(system, jac)   # the choices and the condition, in one unit',

@@ -44,6 +44,7 @@ from ..arrays import read_only
 from ..assembly import projection
 from ..conditioning import AccuracyWarning, scaled_condition_1, warn_if_ill_conditioned
 from ..contacts import limb_conditions, warn_singular_limbs
+from ..coordinates import linear_coordinates
 from ..derivatives import (
     SecondOrderTerms,
     error_estimate,
@@ -264,23 +265,27 @@ def _input_matrix(system, terms) -> np.ndarray:
 SENSITIVITY_CHECK, SENSITIVITY_WARN = 1e3, 1e-6
 
 
-def indistinguishable_move(system, op: OperatingPoint, cp: ConstrainedPoint
-                           ) -> tuple[float, np.ndarray]:
-    """(d [rad or m], w): the distance and the direction (unit, velocity coordinates) along
-    which configurations within d of q0 close the loops as well as q0 does
-    (:func:`assembly_sensitivity`)."""
-    from ..assembly import ASSEMBLY_TOL
+def indistinguishable_move(system, op: OperatingPoint, cp: ConstrainedPoint) -> np.ndarray:
+    """The move dq (nv, velocity coordinates [rad or m]) from q0 to the farthest configuration,
+    z held, that closes the loops as well as q0 does (:func:`assembly_sensitivity`), in one
+    unit: its direction is the smallest right singular vector of Phi_d with the rows as the
+    assembly measures them (each relative to its scale) and the columns of lengths in units
+    of the robot's characteristic length (:func:`pinlin.assembly.unit_factors`), so the same
+    mechanism at another size moves along the same direction."""
+    from ..assembly import ASSEMBLY_TOL, unit_factors
 
     part, G = cp.partition, cp.jacobian
     dep = part.dependent
     cons = system.constraints
     # Rows as the assembly measures them: relative to their scale (closure_error).
     scale = cons.row_scale[part.rows]
-    _, sv, vt = np.linalg.svd(G[:, dep] / scale[:, None])
+    factors = unit_factors(system)
+    length = np.ones(dep.size) if factors is None else factors[1][dep]
+    _, sv, vt = np.linalg.svd(G[:, dep] * length / scale[:, None])
     tol = max(ASSEMBLY_TOL, float((np.abs(cons.residual(op.q)[part.rows]) / scale).max()))
-    w = np.zeros(system.nv)
-    w[dep] = vt[-1]
-    return tol / sv[-1], w
+    move = np.zeros(system.nv)
+    move[dep] = (tol / sv[-1]) * length * vt[-1]
+    return move
 
 
 def assembly_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint,
@@ -297,7 +302,7 @@ def assembly_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint,
     terms, constraint forces and inputs held) at q0 -/+ d w and compared with A.
 
     Returns:
-        (max |A(+) - A(-)| / (2 max |A|), d [rad or m]).
+        (max |A(+) - A(-)| / (2 max |A|), the move d w [rad or m], nv).
     """
     def rebuild(moved: OperatingPoint, moved_cp: ConstrainedPoint) -> np.ndarray:
         terms = second_order_terms(system, moved, "analytic")
@@ -310,28 +315,35 @@ def assembly_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint,
 
 
 def sensitivity_across(system, op: OperatingPoint, cp: ConstrainedPoint, A: np.ndarray,
-                       rebuild) -> tuple[float, float]:
-    """(max |A(+) - A(-)| / (2 max |A|), d [rad or m]) with A(-/+) = ``rebuild(point,
+                       rebuild) -> tuple[float, np.ndarray]:
+    """(max |A(+) - A(-)| / (2 max |A|), the move d w) with A(-/+) = ``rebuild(point,
     constrained point)`` at q0 -/+ d w (:func:`indistinguishable_move`; everything but q and
     Phi_q held), shared by the models at rest and at a moving state."""
     part = cp.partition
-    d, w = indistinguishable_move(system, op, cp)
+    move = indistinguishable_move(system, op, cp)
     models = []
     for sign in (-1.0, 1.0):
-        q = pin.integrate(system.model, op.q, sign * d * w)
+        q = pin.integrate(system.model, op.q, sign * move)
         moved = OperatingPoint.trusted(**{**op.__dict__, "q": q})
         models.append(rebuild(moved, ConstrainedPoint(
             part, system.constraints.jacobian(q)[part.rows])))
     scale = float(np.abs(A).max())
-    return (float(np.abs(models[1] - models[0]).max()) / (2 * scale) if scale else 0.0), d
+    return (float(np.abs(models[1] - models[0]).max()) / (2 * scale) if scale else 0.0), move
 
 
-def _warn_sensitive(system, change: float, d: float) -> None:
+def _warn_sensitive(system, change: float, move: np.ndarray) -> None:
     if change > SENSITIVITY_WARN:
+        linear = linear_coordinates(system)
+        angle = float(np.abs(move[~linear]).max(initial=0.0))
+        length = float(np.abs(move[linear]).max(initial=0.0))
+        parts = [f"{angle:.1e} rad"] if angle or not length else []
+        if length:
+            parts.append(f"{length:.1e} m")
+        within = " and ".join(parts)
         warnings.warn(AccuracyWarning(
             f"model '{system.scene.name}': the operating point is at or near a singular "
             f"position of the mechanism: configurations the assembly cannot tell apart (within "
-            f"{d:.1e} rad or m of q0 along the dependent coordinates) give state matrices "
+            f"{within} of q0 along the dependent coordinates) give state matrices "
             f"{change:.1e} (relative) apart; the model there is not reliable (move q0 away "
             "from the limit, or name other independent coordinates)", 1.0 / change),
             stacklevel=5)
@@ -384,9 +396,9 @@ def linearize_reduced(system, op: OperatingPoint, cp: ConstrainedPoint, *,
                  **_numeric_info(terms, A, A_alt, rounding or 0.0))
     info["condition"]["mass_matrix"] = mass_condition
     if cp.partition.condition > SENSITIVITY_CHECK:
-        change, d = assembly_sensitivity(system, op, cp, A)
+        change, move = assembly_sensitivity(system, op, cp, A)
         info["condition"]["operating_point_sensitivity"] = change
-        _warn_sensitive(system, change, d)
+        _warn_sensitive(system, change, move)
     # Built here with consistent shapes: the trusted constructor keeps the finite and
     # distinct-name checks and skips the rest.
     return LinearModel.assembled(

@@ -217,9 +217,9 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint, *,
         "condition": {"constraint_jacobian": part.condition}, **numeric,
     }
     if check_sensitivity and part.condition > SENSITIVITY_CHECK:
-        change, d = moving_sensitivity(system, op, cp, A)
+        change, move = moving_sensitivity(system, op, cp, A)
         info["condition"]["operating_point_sensitivity"] = change
-        _warn_sensitive(system, change, d)
+        _warn_sensitive(system, change, move)
     # Built here with consistent shapes: the trusted constructor keeps the finite and
     # distinct-name checks and skips the rest (as linearize_reduced).
     return LinearModel.assembled(
@@ -231,7 +231,7 @@ def linearize_moving(system, op: OperatingPoint, cp: ConstrainedPoint, *,
 
 
 def moving_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint, A: np.ndarray
-                       ) -> tuple[float, float]:
+                       ) -> tuple[float, np.ndarray]:
     """:func:`pinlin.formulations.constrained.assembly_sensitivity` at a moving state: the
     analytic model rebuilt at q0 -/+ d w (velocities, accelerations, forces and inputs held;
     Phi_q at the moved configuration). Near a fold the velocity terms grow like v^2 over the
@@ -239,7 +239,7 @@ def moving_sensitivity(system, op: OperatingPoint, cp: ConstrainedPoint, A: np.n
     four-bar 1e-9 rad from its rocker's limit at 0.1 rad/s: 1.8e-3 against 4e-7 at rest).
 
     Returns:
-        (max |A(+) - A(-)| / (2 max |A|), d [rad or m]).
+        (max |A(+) - A(-)| / (2 max |A|), the move d w [rad or m], nv).
     """
     return sensitivity_across(system, op, cp, A, lambda moved, moved_cp: linearize_moving(
         system, moved, moved_cp, check_sensitivity=False).A)
