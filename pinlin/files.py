@@ -98,7 +98,8 @@ SIGNATURES: dict[str, tuple[bytes, ...]] = {
 _MODEL_ARRAYS = ("A", "B", "C", "D", "E", "F", "G", "M", "C_damp", "K", "Bu", "f0", "q", "v",
                  "u", "a", "y", "t", "lam", "meta", "state_names", "input_names", "output_names")
 #: (members every such archive has, members it may have): a model or trajectory model, a
-#: simulation history. An archive with any other member is the user's, whatever it shares.
+#: simulation history. An archive (or a .mat file) with any other member is the user's,
+#: whatever it shares (a model loaded in MATLAB and saved back with the user's results).
 _NPZ_MEMBERS = {
     "model": ({"A.npy", "meta.npy", "state_names.npy"}, {f"{k}.npy" for k in _MODEL_ARRAYS}),
     "history": ({"t.npy", "names.npy", "values.npy"}, {"t.npy", "names.npy", "values.npy"})}
@@ -143,7 +144,7 @@ def _pinlin_content(target: Path, suffix: str, kind: str | None = None) -> bool:
                 names = {name for name, _, _ in whosmat(str(target))}
             except Exception:  # noqa: BLE001 - scipy's reader of a foreign file raises many
                 return False   # kinds (NotImplementedError for v7.3, zlib.error, IndexError)
-            return {"state_names", "meta"} <= names
+            return {"state_names", "meta"} <= names <= set(_MODEL_ARRAYS)
         with target.open("rb") as fh:
             head = fh.read(_HEAD)
         if suffix == ".json":

@@ -786,8 +786,10 @@ def test_outputs_never_replace_a_file_of_another_kind(args, how, capfd, tmp_path
      + b"\x89HDF\r\n\x1a\n" + bytes(64)),
     (".mat", b"MATLAB 5.0 MAT-file"),         # truncated: IndexError inside scipy
     (".mat", "corrupt"),                      # compressed v5 with a damaged body: zlib.error
+    # a pinlin model loaded in MATLAB, the user's results added, the workspace saved back
+    (".mat", "names"),
 ], ids=["json", "npz", "npz_sharing_names", "mat", "mat_v73", "mat_truncated",
-        "mat_corrupt"])
+        "mat_corrupt", "mat_sharing_names"])
 def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content, capfd,
                                                                 tmp_path):
     """Every JSON object starts with '{' and every .npz is a zip: for the data formats pinlin
@@ -802,9 +804,16 @@ def test_data_files_of_the_same_format_but_not_pinlins_are_kept(suffix, content,
         raw = bytearray(target.read_bytes())
         raw[200:260] = bytes(60)
         target.write_bytes(bytes(raw))
-    elif content == "names":
+    elif content == "names" and suffix == ".npz":
         np.savez(target, state_names=np.array(["x"]), A=np.ones((1, 1)), meta=np.array("{}"),
                  important=np.ones(3))
+    elif content == "names":
+        pinlin.linearize("double_pendulum").save(target)
+        import scipy.io
+
+        workspace = scipy.io.loadmat(target)
+        workspace = {k: v for k, v in workspace.items() if not k.startswith("__")}
+        scipy.io.savemat(target, {**workspace, "K_lqr": np.ones((2, 4))})
     else:
         target.write_bytes(content)
     before = snapshot(tmp_path)

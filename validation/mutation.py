@@ -458,6 +458,11 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '    length = np.ones(dep.size)',
         "the sensitivity check's move near a singular position is Phi_d's weakest direction "
         "in m beside rad: the check probes other configurations at another size"),
+    'mat_workspace_replaced': (
+        'pinlin/files.py',
+        '            return {"state_names", "meta"} <= names <= set(_MODEL_ARRAYS)',
+        '            return {"state_names", "meta"} <= names',
+        "a .mat workspace holding a pinlin model and the user's own variables is replaced"),
     'partition_in_mixed_units': (
         'pinlin/assembly.py',
         '    scaled = in_one_unit(system, jac)   # the choices and the condition, in one unit',
