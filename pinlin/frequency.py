@@ -33,6 +33,7 @@ from .exceptions import ArgumentError, ModelError
 from .fields import show
 from .files import PNG_METADATA, check_file_target, write_atomic
 from .linear_model import LinearModel
+from .resources import check_memory
 
 #: A Bode figure draws at most this many (output, input) curves: beyond, select some with
 #: ``inputs=`` / ``outputs=``.
@@ -186,6 +187,8 @@ def frequency_response(model: LinearModel, w: np.ndarray | Sequence[float],
         ArgumentError: not a LinearModel, bad ``w``, or an input or output name the model
             does not have.
         ModelError: a discrete model with input-derivative terms (E, F).
+        ResourceError: the response would exceed the memory limit
+            (:mod:`pinlin.resources`).
     """
     if not isinstance(model, LinearModel):
         raise ArgumentError("model", f"expected a pinlin LinearModel, got "
@@ -193,6 +196,12 @@ def frequency_response(model: LinearModel, w: np.ndarray | Sequence[float],
     w = _frequencies(w)
     cols = _select(inputs, model.input_names, "input")
     rows = _select(outputs, model.output_names, "output")
+    # H, its pole mask and one einsum temporary (16 + 1 + 16 bytes an entry), the resolvent
+    # of the scalar modes with its gap and mask (about 48 bytes per state and frequency),
+    # before any is allocated (1e8 frequencies of a double pendulum raised numpy's
+    # MemoryError).
+    check_memory(len(w) * (33 * len(rows) * len(cols) + 48 * model.n_states + 16),
+                 f"model '{model.name}': the frequency response at {len(w)} frequencies")
     std = model.standard_form()
     if model.dt:
         for key in ("E", "F"):

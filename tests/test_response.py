@@ -891,3 +891,17 @@ def test_a_step_warned_as_long_is_refused_where_the_check_finds_no_digit():
         warnings.simplefilter("ignore", pinlin.AccuracyWarning)
         with pytest.raises(pinlin.ModelError, match="lost to rounding"):
             pinlin.response(model, [0.0, T], [1e-3, 0.0], method="exact")
+
+
+def test_a_frequency_response_too_large_for_memory_is_refused_before_it_allocates():
+    """1e8 frequencies of the double pendulum raised numpy's MemoryError (8.9 GiB for H);
+    H and its work arrays are counted first (here 2e6 frequencies of ur5, 4 outputs x 6
+    inputs, ~3 GB, under a 100 MB limit): a ResourceError naming the frequencies."""
+    model = pinlin.linearize(pinlin.Scene.load(URDF_DIR / "ur5_arm.toml"))
+    w = np.linspace(0.1, 10.0, 2_000_000)
+    with pinlin.resources.memory_limit_override("100M"), \
+            pytest.raises(pinlin.ResourceError, match="2000000 frequencies"):
+        pinlin.frequency_response(model, w)
+    # Within the limit it runs: the estimate does not refuse what fits.
+    with pinlin.resources.memory_limit_override("100M"):
+        assert pinlin.frequency_response(model, w[:1000]).H.shape[0] == 1000
