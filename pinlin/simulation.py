@@ -41,7 +41,7 @@ from .linearization import _system, operating_point
 from .operating_point import OperatingPoint
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .simulation_inputs import Inputs
-from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain
+from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain, continuous_angles
 from .system import System
 
 #: rho * T above this is stiff (rho: fastest decay rate [1/s], T: horizon [s]) ...
@@ -164,9 +164,10 @@ def _choose_method(dyn: Any, s0: np.ndarray, inputs: Inputs, t: np.ndarray
 
 def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: str,
                rtol: float, atol: float | Callable[[Any], np.ndarray]
-               ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
-    """(q, v) at the times t, and the solver statistics. The solver is restarted (with its
-    last step size) where the coordinates change (dyn.after_step) or a held input changes.
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    """(q, v, the chart coordinates travelled from q0 (dyn.travelled)) at the times t, and the
+    solver statistics. The solver is restarted (with its last step size) where the
+    coordinates change (dyn.after_step) or a held input changes.
     ``atol``: a number, or a function of dyn giving one per state entry (taken at every
     start: a mechanism's independent coordinates may have changed)."""
     import scipy.integrate  # here: it costs ~0.3 s to import, which only simulate pays
@@ -174,8 +175,9 @@ def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: 
     solver_class = getattr(scipy.integrate, method)
     N = t.size
     q0, v0 = dyn.state(s0)
-    Q, V = np.zeros((N, q0.size)), np.zeros((N, v0.size))
+    Q, V, C = np.zeros((N, q0.size)), np.zeros((N, v0.size)), np.zeros((N, v0.size))
     Q[0], V[0] = q0, v0
+    C[0] = dyn.travelled(s0)
     stats = {"nfev": 0, "njev": 0, "nlu": 0, "steps": 0,
              "restarts": {"chart": 0, "partition": 0, "input": 0}}
     k, ts, s, h = 1, float(t[0]), s0, None
@@ -213,6 +215,7 @@ def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: 
                 for i in range(k, j):
                     state = solver.y if t[i] == solver.t else dense(t[i])
                     Q[i], V[i] = dyn.state(state)
+                    C[i] = dyn.travelled(state)
                 k = j
             restart = dyn.after_step(solver.y)
         for key in ("nfev", "njev", "nlu"):
@@ -226,7 +229,7 @@ def _integrate(dyn: Any, inputs: Inputs, t: np.ndarray, s0: np.ndarray, method: 
             s = solver.y
             if k < N:
                 stats["restarts"]["input"] += 1
-    return Q, V, stats
+    return Q, V, C, stats
 
 
 def _outputs(system: System, Q: np.ndarray, V: np.ndarray) -> np.ndarray | None:
@@ -250,9 +253,10 @@ def _outputs(system: System, Q: np.ndarray, V: np.ndarray) -> np.ndarray | None:
 
 
 def _energy(system: System, op: OperatingPoint, Q: np.ndarray, V: np.ndarray,
-            inputs: Inputs) -> tuple[np.ndarray | None, str]:
+            DQ: np.ndarray, inputs: Inputs) -> tuple[np.ndarray | None, str]:
     """Total mechanical energy [J] (Simulation.energy) and what it contains or why it is
-    undefined."""
+    undefined; ``DQ``: the motion from q0 (N, nv), continuous joints' angles in turns (u0's
+    work grows with every turn)."""
     if system.rotation is not None:
         return None, "undefined: the scene rotates (a non-inertial frame)"
     if inputs.samples is not None or inputs.function is not None:
@@ -272,7 +276,7 @@ def _energy(system: System, op: OperatingPoint, Q: np.ndarray, V: np.ndarray,
         if system.has_springs:
             E[i] += 0.5 * system.stiffness @ pin.difference(model, system.q_rest, q) ** 2
         if loaded.size:
-            E[i] -= op.u @ pin.difference(model, op.q, q)[system.actuated]
+            E[i] -= op.u @ DQ[i, system.actuated]
     terms = ["kinetic"] + ["gravity"] * (system.scene.effects.gravity is not None) \
         + ["springs"] * system.has_springs
     what = " + ".join(terms) + (" - work of u0" if loaded.size else "") \
@@ -422,14 +426,20 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
         atol = ATOL
         if linear_coordinates(system).any():
             length = characteristic_length(system, op.q)[0]
-    Q, V, stats = _integrate(dyn, inputs, grid, s0, method, rtol, atol if length is None else
-                             lambda d: np.where(d.linear_state(), atol * length, atol))
+    Q, V, C, stats = _integrate(dyn, inputs, grid, s0, method, rtol,
+                                atol if length is None else
+                                lambda d: np.where(d.linear_state(), atol * length, atol))
     finite = np.isfinite(Q).all(axis=1) & np.isfinite(V).all(axis=1)
     if not finite.all():
         raise ModelError(f"the integration overflowed ({method}): the state is not finite "
                          f"from t = {grid[int(np.argmin(finite))]:.6g} s")
 
     X = np.hstack([np.array([pin.difference(system.model, op.q, q) for q in Q]), V - op.v])
+    # What a feedback law read during the integration: x with rotations wrapped (log map).
+    X_read = X.copy()
+    # A continuous joint's angle as it travelled, in turns (difference wraps it at pi).
+    turning = continuous_angles(system)
+    X[:, turning] = C[:, turning]
     Z = np.hstack([X[:, cols], X[:, nv + cols]])
     drift = np.array([dyn.drift(q, v) for q, v in zip(Q, V, strict=True)]) \
         if isinstance(dyn, Mechanism) else np.zeros((grid.size, 2))
@@ -439,9 +449,9 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     out_names = system.outputs.names if system.outputs is not None else independent
     if Y is None:
         Y = Z
-    energy, energy_note = _energy(system, op, Q, V, inputs)
-    U = np.array([inputs.total(float(ti), lambda x=x: x) for ti, x in zip(grid, X, strict=True)]
-                 ).reshape(grid.size, op.u.size)
+    energy, energy_note = _energy(system, op, Q, V, X[:, :nv], inputs)
+    U = np.array([inputs.total(float(ti), lambda x=x: x) for ti, x in
+                  zip(grid, X_read, strict=True)]).reshape(grid.size, op.u.size)
     info = {"solver": f"scipy.integrate.{method}", "method": method, "method_reason": why,
             "stiffness": stiffness, "rtol": rtol, "atol": atol,
             **({} if length is None else {"atol_linear": atol * length}), **stats,

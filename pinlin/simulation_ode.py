@@ -101,6 +101,13 @@ def chart_rate(model: pin.Model, q_ref: np.ndarray, q: np.ndarray, v: np.ndarray
     return pin.dDifference(model, q_ref, q, pin.ArgumentPosition.ARG1) @ v if lie else v
 
 
+def continuous_angles(system: System) -> np.ndarray:
+    """Velocity indices of the continuous (unbounded 1-DoF rotation, stored as cos and sin)
+    joints, whose difference from q0 wraps at pi."""
+    return np.array([j.idx_v for j in system.joints.values()
+                     if j.nv == 1 and j.kind.startswith("JointModelRUB")], dtype=int)
+
+
 class OpenChain:
     """s = (dq, v) in the chart about q_ref (module docstring)."""
 
@@ -111,16 +118,19 @@ class OpenChain:
         self.centred = True   # q_ref is q0
         self.lie = system.nq != system.nv
         self.angles = chart_angles(system)
+        self.offset = np.zeros(self.nv)   # chart displacements summed over re-centrings
 
     def initial_state(self, dx0: np.ndarray) -> tuple[np.ndarray, list[str]]:
         if dx0.size != 2 * self.nv:
             raise ShapeError(f"dx0 must have 2 nv = {2 * self.nv} entries, got {dx0.size}")
         dq = dx0[:self.nv]
         self.centred = not beyond_chart(dq, self.angles)
+        self.offset = np.zeros(self.nv)
         if self.centred:   # at q0: x = dq exactly, resolved relative to itself near q0
             self.q_ref = self.op.q.copy()
         else:              # a rotation beyond the chart: centred at q
             self.q_ref = pin.integrate(self.model, self.op.q, dq)
+            self.offset = dq.copy()
             dq = np.zeros(self.nv)
         return np.concatenate([dq, self.op.v + dx0[self.nv:]]), []
 
@@ -154,6 +164,12 @@ class OpenChain:
     def state(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return pin.integrate(self.model, self.q_ref, s[:self.nv]), s[self.nv:].copy()
 
+    def travelled(self, s: np.ndarray) -> np.ndarray:
+        """The chart coordinates at ``s`` plus their values at every earlier re-centring (nv):
+        a 1-DoF joint's whole change from q0, a continuous joint's angle counted in turns
+        (difference(q0, q) wraps it at pi)."""
+        return self.offset + s[:self.nv]
+
     def linear_state(self) -> np.ndarray:
         """Which entries of s are lengths [m] and linear velocities [m/s] (the others are
         angles [rad] and rates [rad/s])."""
@@ -164,6 +180,7 @@ class OpenChain:
         """A re-centred state when the chart's angles exceed CHART_LIMIT, else None."""
         if not beyond_chart(s, self.angles):
             return None
+        self.offset = self.offset + s[:self.nv]
         self.q_ref = pin.integrate(self.model, self.q_ref, s[:self.nv])
         self.centred = False
         return np.concatenate([np.zeros(self.nv), s[self.nv:]]), "chart"
@@ -190,6 +207,7 @@ class Mechanism:
         self.columns = part.independent  # of z in x, fixed at q0
         self.cache: tuple[np.ndarray, ...] = ()
         self._where = _ALONG  # (where, why) for error messages
+        self.offset = np.zeros(self.nv)   # chart displacements summed over re-centrings
 
     def _use(self, independent: np.ndarray) -> None:
         self.z, self.d = np.asarray(independent), complement(self.nv, independent)
@@ -204,6 +222,7 @@ class Mechanism:
             raise ShapeError(f"dx0 must have 2 nv = {2 * nv} entries (all coordinates) or 2 nz "
                              f"= {2 * nz} (the independent ones), got {dx0.size}")
         self.q_ref = self.op.q.copy()
+        self.offset = np.zeros(nv)
         self.centred = True   # q_ref = q0: the chart coordinates c are x's positions
         G = self.cons.jacobian(self.op.q)[self.rows]
         self.cache = (np.zeros(nz), np.zeros(nv), self.op.q, G, self._basis(G))
@@ -264,8 +283,9 @@ class Mechanism:
 
     def _recentre(self, q: np.ndarray, G: np.ndarray, R: np.ndarray, v: np.ndarray
                   ) -> np.ndarray:
-        """Centre the chart at the configuration q (q_ref := q, c := 0; G and R are q's) and
-        return the state there, (0, v[z])."""
+        """Centre the chart at the configuration q (q_ref := q, c := 0; G and R are q's, and
+        the cache holds q's c) and return the state there, (0, v[z])."""
+        self.offset = self.offset + self.cache[1]
         self.q_ref = q.copy()
         self.centred = False
         self.cache = (np.zeros(self.z.size), np.zeros(self.nv), q, G, R)
@@ -292,6 +312,12 @@ class Mechanism:
         lengths [m] and linear velocities [m/s]."""
         linear = linear_coordinates(self.system)[self.z]
         return np.concatenate([linear, linear])
+
+    def travelled(self, s: np.ndarray) -> np.ndarray:
+        """:meth:`OpenChain.travelled`: the chart coordinates c at ``s`` (all nv) plus their
+        values at every earlier re-centring."""
+        self._configure(s)
+        return self.offset + self.cache[1]
 
     def model_state(self, s: np.ndarray) -> np.ndarray:
         """x = [difference(q0, q); v - v0] at state ``s`` (all nv coordinates; what a feedback

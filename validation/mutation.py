@@ -463,6 +463,10 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         '            return {"state_names", "meta"} <= names <= set(_MODEL_ARRAYS)',
         '            return {"state_names", "meta"} <= names',
         "a .mat workspace holding a pinlin model and the user's own variables is replaced"),
+    'continuous_angle_wrapped': (
+        'pinlin/simulation.py', '    X[:, turning] = C[:, turning]\n', '',
+        "a simulated continuous joint's angle wraps at pi (the history jumps by 2 pi, u0's "
+        "work and so the energy by 2 pi u0 at every turn)"),
     'partition_in_mixed_units': (
         'pinlin/assembly.py',
         '    scaled = in_one_unit(system, jac)   # the choices and the condition, in one unit',
