@@ -178,7 +178,8 @@ def check_second_order(model: LinearModel) -> None:
              norm(M) * norm(B[nv:]) + norm(model.Bu), allowed),
         )
     for what, residual, scale, tolerance in checks:
-        limit = tolerance * scale
+        # A singular M allows any residual, even where a block has no scale (M = 0: inf * 0).
+        limit = tolerance * scale if math.isfinite(tolerance) else math.inf
         # A product of finite entries may overflow (inf, or inf - inf = NaN): refused, as the
         # model's dynamics could not be checked (M = 1e200 against A = 1e200).
         if not residual <= limit or (not math.isfinite(residual) and allowed < math.inf):

@@ -380,6 +380,20 @@ def test_second_order_matrices_must_agree_with_the_state_matrix():
     np.testing.assert_allclose(np.sort_complex(pinlin.modal(good).eigenvalues), [-2j, 2j])
 
 
+def test_a_singular_mass_matrix_allows_any_second_order_residual():
+    """A model linearized with allow_ill_conditioned has lower rows formed with an inverse of
+    no correct digit, so a singular M allows any residual and the model loads. M = 0 made the
+    allowance inf * 0 where a block had no scale (C_damp = 0): the model was refused as
+    'above the nan rounding allows', with a RuntimeWarning from the product."""
+    eye, zero = np.eye(1), np.zeros((1, 1))
+    args = (np.zeros((2, 1)), np.eye(2), np.zeros((2, 1)), ("q:a", "v:a"), ("u",), ("y1", "y2"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model = pinlin.LinearModel([[0, 1], [-4, 0]], *args, M=zero, K=eye, C_damp=zero,
+                                   Bu=eye)
+    np.testing.assert_allclose(np.sort_complex(pinlin.modal(model).eigenvalues), [-2j, 2j])
+
+
 def test_info_does_not_turn_damping_off():
     """``info = {"velocity_terms": False}`` made modal skip its look at C_damp and solve the
     undamped pencil: +-1j for a damped oscillator whose A has -0.5 +- 0.866j."""
