@@ -98,13 +98,15 @@ def read_states(path: str | Path, system: System
     path = as_path(path)
     raw = _file(path, STATE_FORMATS, "trajectory")
     if path.suffix == ".npz":
-        return _read_npz_states(path, raw)
+        return _read_npz_states(path, raw, len(system.input_names))
     return _read_csv_states(path, raw, system)
 
 
-def _read_npz_states(path: Path, raw: bytes
+def _read_npz_states(path: Path, raw: bytes, nu: int
                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None,
                                 np.ndarray | None]:
+    """:func:`read_states` of an .npz; ``nu``: the scene's inputs (none: u may be left out,
+    as a .csv has no u columns then)."""
     if not zipfile.is_zipfile(io.BytesIO(raw)):
         raise ModelFileError(path, "not an .npz archive (not a zip file)")
     try:
@@ -123,6 +125,8 @@ def _read_npz_states(path: Path, raw: bytes
         raise ModelFileError(path, f"unknown member {unknown[0]!r}; expected arrays q (N, nq), "
                                    "v (N, nv), u (N, nu) and optionally t (N,)")
     missing = [k for k in ("q", "v", "u") if k not in doc]
+    if missing == ["u"] and nu == 0 and doc["q"].ndim:   # a scene without inputs
+        doc["u"], missing = np.zeros((len(doc["q"]), 0)), []
     if missing and missing != ["v", "u"]:
         raise ModelFileError(path, f"missing {', '.join(map(repr, missing))}; expected arrays "
                                    "q (N, nq), v (N, nv), u (N, nu) and optionally t (N,), or "

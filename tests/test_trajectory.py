@@ -520,6 +520,26 @@ def test_cli_reads_both_state_formats(suffix, tmp_path, capfd, monkeypatch):
     np.testing.assert_array_equal(back.t, t)
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_cli_takes_states_without_inputs_for_a_scene_without_inputs(suffix, tmp_path, capfd):
+    """A scene without inputs (a box balanced on its tip) has no u columns in a .csv; its
+    .npz was refused for a missing 'u' unless it held an array of shape (N, 0). Both forms
+    now read, and give what the API gives."""
+    scene = pinlin.Scene.resolve("standing_box")
+    q = np.tile(pinlin.operating_point(scene).q, (3, 1))
+    v = 0.01 * np.arange(18.0).reshape(3, 6)
+    states_file = tmp_path / f"traj{suffix}"
+    if suffix == ".npz":
+        np.savez(states_file, q=q, v=v)
+    else:
+        _write_csv(states_file, scene, q, v, np.zeros((3, 0)))
+    out = tmp_path / "models.npz"
+    code = main(["trajectory", "standing_box", str(states_file), "--out", str(out)])
+    assert code == 0, capfd.readouterr().err
+    ref = pinlin.linearize_trajectory(scene, q, v, np.zeros((3, 0)))
+    np.testing.assert_array_equal(pinlin.TrajectoryModel.load(out).A, ref.A)
+
+
 @pytest.mark.parametrize("edit, words", [
     (lambda h: h.replace("v:elbow_joint", "v:elbow"), "unknown column 'v:elbow' for scene "
                                                       "'ur5_arm'; did you mean 'v:elbow_joint'"),
