@@ -62,20 +62,25 @@ class Simulation:
     Attributes:
         t: (N,) times [s].
         x: (N, 2nv) state in the linear model's coordinates about the operating point,
-            x = [difference(q0, q); v - v0] (all coordinates, dependent ones included).
+            x = [difference(q0, q); v - v0] (all coordinates, dependent ones included), a
+            continuous joint's angle followed in turns (difference wraps it at pi; a free
+            flyer's, spherical or planar joint's rotation stays in the log map, wrapping).
         z: (N, 2nz) the independent coordinates' part of ``x``, [dz; dz'] (the state of the
             linear model of a mechanism); equal to ``x`` for an open chain.
         q: (N, nq) configurations (Pinocchio convention, quaternions [x, y, z, w]).
         v: (N, nv) velocities [rad/s or m/s] (a free flyer's in its own frame).
-        u: (N, nu) inputs applied, u0 + du (the feedback's share included) [N*m or N].
+        u: (N, nu) inputs applied, u0 + du (the feedback's share included) [N*m or N]. A
+            feedback law reads x with every rotation wrapped (log map), a continuous joint's
+            too: past pi its u is u0 - K x' with x' that wrapped x, not with ``x``.
         y: (N, p) outputs: the linear model's y plus its ``operating_point.y``, i.e. frame
             positions in the world [m], joint values ``difference(neutral, q)`` and
             velocities; the state (``x``, or ``z`` for a mechanism) when the scene names none.
         drift: (N, 2) constraint residuals max |Phi(q)| [m or rad] and max |Phi_q v|
             [m/s or rad/s] (zeros without constraints).
         energy: (N,) total mechanical energy [J]: kinetic 1/2 v^T M v (armature included) +
-            gravity + springs, minus the work of the constant inputs u0, u0 . difference(q0,
-            q) on their 1-DoF joints; constant without damping, non-increasing with it. None
+            gravity + springs, minus the work of the constant inputs u0, u0 . dq on their
+            1-DoF joints (dq from ``x``: in turns for a continuous joint); constant without
+            damping, non-increasing with it. None
             when not defined: a rotating scene (a non-inertial frame), inputs du given, or u0
             on a multi-DoF joint, feedback (``info["energy"]`` says why).
         operating_point: The point simulated about (q0, v0, u0).

@@ -102,10 +102,13 @@ def chart_rate(model: pin.Model, q_ref: np.ndarray, q: np.ndarray, v: np.ndarray
 
 
 def continuous_angles(system: System) -> np.ndarray:
-    """Velocity indices of the continuous (unbounded 1-DoF rotation, stored as cos and sin)
-    joints, whose difference from q0 wraps at pi."""
-    return np.array([j.idx_v for j in system.joints.values()
-                     if j.nv == 1 and j.kind.startswith("JointModelRUB")], dtype=int)
+    """Velocity indices of the continuous joints (an unbounded 1-DoF rotation stored as cos
+    and sin, nq = 2: Pinocchio's JointModelRUBX/Y/Z, or RevoluteUnboundedUnaligned for any
+    other axis), whose difference from q0 wraps at pi. (A planar joint's angle wraps too,
+    through the SE(2) log; its translation, taken with it, is not additive over re-centrings:
+    it stays in the log map, as a free flyer's and a spherical joint's rotations do.)"""
+    return np.array([j.idx_v for j in system.joints.values() if j.nv == 1 and j.nq == 2],
+                    dtype=int)
 
 
 class OpenChain:
@@ -140,7 +143,8 @@ class OpenChain:
         (difference(q0, integrate(q0, dq)) = dq for rotations below pi): as smooth in s as s
         is, where forming q = q0 + dq first would round at eps |q| (noise that a high gain
         amplifies into the right-hand side). After a re-centring it is computed through q.
-        A rotation of more than pi from q0 wraps (the log map), as x itself does."""
+        A rotation of more than pi from q0 wraps (the log map), a continuous joint's too
+        (:attr:`pinlin.Simulation.x` follows that one in turns, :meth:`travelled`)."""
         nv = self.nv
         if self.centred:
             dq = s[:nv].copy()

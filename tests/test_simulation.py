@@ -6,6 +6,7 @@ response (expm) and MuJoCo's RK4 integration of the exported scene."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -374,25 +375,43 @@ def test_signal_input_is_the_same_function_of_time():
         pinlin.simulate("pendulum", t, u=pinlin.impulse({"hinge": 1.0}))
 
 
-def _held_double_pendulum(robot: str) -> pinlin.Scene:
-    return pinlin.Scene.from_dict({
-        "name": "held", "robot": robot, "base": "fixed",
-        "effects": {"gravity": [0.0, 0.0, -9.81]},
-        "operating_point": {"q": {"joint1": 1.0}, "solve": "inputs"},
-        "inputs": {"actuated": "all"}})
+def _held_double_pendulum(robot: str, axis: str | None, folder) -> pinlin.Scene:
+    """example-robot-data's double pendulum ``robot`` held at joint1 = 1 by its inputs, its
+    joints' axes ``axis`` (None: as given, +x)."""
+    data = {"name": "held", "base": "fixed", "effects": {"gravity": [0.0, 0.0, -9.81]},
+            "operating_point": {"q": {"joint1": 1.0}, "solve": "inputs"},
+            "inputs": {"actuated": "all"}}
+    if axis is None:
+        return pinlin.Scene.from_dict({**data, "robot": robot})
+    import re
+
+    from pinlin.robots import load_robot
+
+    text = Path(load_robot(robot).urdf_path).read_text()
+    text = re.sub(r"<visual>.*?</visual>|<collision>.*?</collision>", "", text, flags=re.S)
+    urdf = folder / f"{robot}.urdf"
+    urdf.write_text(re.sub(r'<axis\s+xyz="1 0 0"\s*/>', f'<axis xyz="{axis}"/>', text))
+    return pinlin.Scene.from_urdf(urdf, **data)
 
 
+@pytest.mark.parametrize("axis", [None, "-1 0 0"], ids=["axis_x", "axis_minus_x"])
 @pytest.mark.parametrize("dx0", [[0.0, 0.0, 15.0, 0.0], [4.0, 0.0, 0.0, 0.0]],
                          ids=["spinning", "started_beyond_pi"])
-def test_a_continuous_joint_is_followed_in_turns(dx0):
+def test_a_continuous_joint_is_followed_in_turns(dx0, axis, tmp_path):
     """example-robot-data's double pendulum with continuous joints (cos, sin) and its
     revolute twin have the same dynamics, so the same motion: the reference. Measured through
     difference(q0, q) the continuous angle wrapped at pi: the history read -2.28 where the
     user started it at 4 rad, and the energy jumped by 2 pi u0 = 3.96 J at every turn of a
-    spinning joint held by u0 (the revolute twin: 1e-12 J)."""
+    spinning joint held by u0 (the revolute twin: 1e-12 J). An axis other than +x, +y or +z
+    makes Pinocchio's unaligned joint (JointModelRevoluteUnboundedUnaligned): followed alike."""
     t = np.linspace(0.0, 1.0, 101)
-    twin = pinlin.simulate(_held_double_pendulum("double_pendulum"), t, dx0=dx0)
-    sim = pinlin.simulate(_held_double_pendulum("double_pendulum_continuous"), t, dx0=dx0)
+    twin = pinlin.simulate(_held_double_pendulum("double_pendulum", axis, tmp_path), t,
+                           dx0=dx0)
+    scene = _held_double_pendulum("double_pendulum_continuous", axis, tmp_path)
+    kinds = {j.kind for j in scene.system.joints.values()}
+    assert kinds == ({"JointModelRUBX"} if axis is None else
+                     {"JointModelRevoluteUnboundedUnaligned"})
+    sim = pinlin.simulate(scene, t, dx0=dx0)
     assert sim.state_names == twin.state_names
     np.testing.assert_allclose(sim.x, twin.x, rtol=0, atol=1e-7 * np.abs(twin.x).max())
     assert sim.x[0, 0] == dx0[0]
