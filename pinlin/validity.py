@@ -81,13 +81,14 @@ import numpy as np
 
 from .arrays import non_numbers, read_only, real_array
 from .closed_loop import model_gain
+from .coordinates import characteristic_length, linear_coordinates
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 from .linearization import _system, linearize
 from .modal import ModalAnalysis, modal
 from .response import response
 from .scene import POSITION_LIMIT
-from .simulation import MAX_CYCLES, simulate
+from .simulation import ATOL, MAX_CYCLES, simulate
 from .system import System
 from .validity_report import Bound, Case, Validity, notes
 
@@ -285,8 +286,9 @@ class _Sweep:
     """One case: measures e(a) (keeping every motion for the histories) and builds its Case."""
 
     def __init__(self, system: System, model: LinearModel, d: np.ndarray, t: np.ndarray,
-                 options: dict) -> None:
+                 options: dict, noise_atol: float) -> None:
         self.system, self.d, self.t, self.options = system, d, t, options
+        self.noise_atol = noise_atol   # the atol of the noise floor (_floor) [rad or m]
         self.n, self.names = model.n_states // 2, model.state_names
         ref_lin = response(model, t, method="exact").x
         self.unit_lin = response(model, t, x0=d, method="exact").x - ref_lin
@@ -353,7 +355,7 @@ class _Sweep:
             else float(a[k])
         a = np.array(sorted(self.rows))
         e, e_q, e_v = (read_only(np.array([self.rows[x][j] for x in a])) for j in range(3))
-        p, diagnosis = _order(a, e, self.options["rtol"], self.options["atol"])
+        p, diagnosis = _order(a, e, self.options["rtol"], self.noise_atol)
         dnl, n = self.runs.get(radius), self.n
         return Case(
             **about, direction=read_only(self.d.copy()), amplitudes=read_only(a), errors=e,
@@ -411,7 +413,7 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
              periods: float = 5, tolerance: float = 0.01, *, modes: object = None,
              direction: object = None, time_constants: float = 2.0,
              horizon: float | None = None, q: np.ndarray | None = None,
-             v: np.ndarray | None = None, rtol: float = 1e-10, atol: float = 1e-12,
+             v: np.ndarray | None = None, rtol: float = 1e-10, atol: float | None = None,
              feedback: object = None) -> Validity:
     """How large a motion the scene's linear model stays accurate for (module docstring).
 
@@ -435,7 +437,8 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
         q, v: The point instead of the scene's, as for :func:`pinlin.linearize` and
             :func:`pinlin.simulate` (q (nq); v (nv) [rad/s or m/s]: the state is given, u0 the
             scene's ``u`` or zero, so the point need not be an equilibrium).
-        rtol, atol: Tolerances of the nonlinear simulation.
+        rtol, atol: Tolerances of the nonlinear simulation (:func:`pinlin.simulate`'s: atol
+            None is 1e-12 per rad and 1e-12 L per m, L the robot's characteristic length).
         feedback: A gain K (n_inputs x n_states of the scene's linear model, as
             ``control.lqr`` returns it; for a mechanism on its independent coordinates
             [dz; dz'], or on all 2 nv coordinates: its linear model's gain is then
@@ -457,7 +460,14 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
         raise ArgumentError("periods", f"expected at most {MAX_CYCLES:g} periods (each takes "
                                        f"the integrator ~10 steps), got {periods:g}")
     tolerance = _positive("tolerance", tolerance, "(relative error)", upper=1.0)
-    _check_integration(rtol, atol, tolerance, float(amps.min()))
+    # The noise floor's atol: simulate's per-unit default at its largest (metres of a robot
+    # larger than 1 m), else the atol given.
+    noise_atol = atol
+    if atol is None:
+        noise_atol = ATOL
+        if linear_coordinates(system).any():
+            noise_atol *= max(1.0, characteristic_length(system, system.scene_configuration)[0])
+    _check_integration(rtol, noise_atol, tolerance, float(amps.min()))
     time_constants = _positive("time_constants", time_constants, "of time constants")
     horizon = None if horizon is None else _positive("horizon", horizon, "[s]")
     model = linearize(system, q=q, v=v)
@@ -490,7 +500,7 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
     for label, i, d, unit, (T, period, rule) in jobs:
         if horizon is not None:
             T, rule = horizon, "given"
-        sweep = _Sweep(system, model, d, _grid(T, period), options)
+        sweep = _Sweep(system, model, d, _grid(T, period), options, noise_atol)
         cases.append(sweep.case(amps, default, tolerance, label=label, index=i, unit=unit,
                                 eigenvalue=None if i is None else complex(ma.eigenvalues[i]),
                                 kind="direction" if i is None else ma.kind(i), horizon=T,
