@@ -82,13 +82,19 @@ def constraint(analysis: ModalAnalysis) -> np.ndarray:
 
 def constraint_mask(model, vectors: np.ndarray) -> np.ndarray:
     """Which columns of the right eigenvectors ``vectors`` (of a model with G, m rows) are the
-    2m constraint modes: those whose position part lies most in the range of G^T."""
-    G = model.G
+    2m constraint modes (:func:`constraint_columns` of their position part)."""
     rows = [k for k, s in enumerate(model.state_names) if s.startswith("q:")]
-    vq = vectors[rows]
-    ratio = np.linalg.norm(G @ vq, axis=0) / (
-        np.linalg.norm(G, 2) * np.maximum(np.linalg.norm(vq, axis=0), np.finfo(float).tiny))
-    out = np.zeros(vectors.shape[1], dtype=bool)
+    return constraint_columns(model.G, vectors[rows])
+
+
+def constraint_columns(G: np.ndarray, right_q: np.ndarray) -> np.ndarray:
+    """Mask of the 2m constraint modes among the columns of ``right_q``, the position part
+    (n, k) of right eigenvectors of a dependent-coordinate model whose G has m rows: those
+    whose position part lies most in the range of G^T (the penalty model's, the canonical
+    model's, the mode table's)."""
+    ratio = np.linalg.norm(G @ right_q, axis=0) / (
+        np.linalg.norm(G, 2) * np.maximum(np.linalg.norm(right_q, axis=0), np.finfo(float).tiny))
+    out = np.zeros(right_q.shape[1], dtype=bool)
     out[np.argsort(-ratio, kind="stable")[:2 * G.shape[0]]] = True
     return out
 

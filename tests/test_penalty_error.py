@@ -29,7 +29,8 @@ from scipy.optimize import linear_sum_assignment
 from test_scale_invariance import scaled_scene
 
 import pinlin
-from pinlin.formulations.penalty_error import PENALTY_WARN, constraint_modes
+from pinlin.formulations.penalty_error import PENALTY_WARN
+from pinlin.modal_table import constraint_columns
 from pinlin.scene import bundled_scenes
 
 #: (scene, s, k): lengths x s, masses x k.
@@ -46,7 +47,7 @@ MOVING = [("four_bar", 1.0, 1.0), ("four_bar", 2.0 ** -7, 2.0 ** 20),
 
 def physical(model: pinlin.LinearModel) -> np.ndarray:
     lam, vectors = np.linalg.eig(model.A)
-    return lam[~constraint_modes(model.G, vectors[:model.G.shape[1]])]
+    return lam[~constraint_columns(model.G, vectors[:model.G.shape[1]])]
 
 
 def relative_error(lam: np.ndarray, exact: np.ndarray) -> float:

@@ -437,7 +437,7 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "the penalty's error taken as lam(alpha) - lam(2 alpha), half of it"),
     'penalty_error_counts_constraint_modes': (
         'pinlin/formulations/penalty_error.py',
-        '    physical = ~constraint_modes(G, right[:n]) & (np.abs(lam) > scale)',
+        '    physical = ~constraint_columns(G, right[:n]) & (np.abs(lam) > scale)',
         '    physical = np.abs(lam) > scale',
         "the penalty's error estimate counts the constraint modes (a defective double root "
         "with mu = 1): warnings on every mechanism"),

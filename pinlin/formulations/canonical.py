@@ -15,6 +15,7 @@ from ..conditioning import AccuracyWarning
 from ..equilibrium import ConstrainedPoint
 from ..exceptions import ArgumentError
 from ..linear_model import LinearModel
+from ..modal_table import constraint_columns
 from ..operating_point import OperatingPoint
 from .constrained import (
     _alt,
@@ -77,11 +78,7 @@ def _check_canonical_spectrum(A: np.ndarray, A_pen: np.ndarray, G: np.ndarray, a
     n = G.shape[1]
     lam_c = sla.eigvals(A, check_finite=False)
     lam_p, vec = sla.eig(A_pen, check_finite=False)
-    vq = vec[:n]
-    along_g = np.linalg.norm(G @ vq, axis=0) / np.maximum(np.linalg.norm(vq, axis=0),
-                                                          np.finfo(float).tiny)
-    physical = np.ones(len(lam_p), dtype=bool)
-    physical[np.argsort(-along_g, kind="stable")[:2 * G.shape[0]]] = False
+    physical = ~constraint_columns(G, vec[:n])
     ref = np.maximum(np.abs(lam_p), 1e-6 * max(float(np.abs(lam_p).max(initial=0.0)), 1.0))
     cost = np.abs(lam_c[:, None] - lam_p[None, :]) / ref[None, :]
     rows, cols = linear_sum_assignment(cost)

@@ -34,23 +34,13 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..conditioning import AccuracyWarning
+from ..modal_table import constraint_columns
 
 #: A penalty or canonical model warns where :func:`penalty_error` exceeds this: its physical
 #: eigenvalues are off in their third digit or worse.
 PENALTY_WARN = 1e-3
 #: Relative threshold below which an eigenvalue is a rigid-body mode (as pinlin.modal's default).
 RIGID_RTOL = 1e-6
-
-
-def constraint_modes(G: np.ndarray, right_q: np.ndarray) -> np.ndarray:
-    """Mask of the 2m constraint modes among the columns of ``right_q`` (the position part
-    (n, k) of right eigenvectors of a dependent-coordinate model whose G has m rows): those
-    whose position part lies most in the range of G^T."""
-    along_g = np.linalg.norm(G @ right_q, axis=0) / np.maximum(
-        np.linalg.norm(right_q, axis=0), np.finfo(float).tiny)
-    out = np.zeros(right_q.shape[1], dtype=bool)
-    out[np.argsort(-along_g, kind="stable")[:2 * G.shape[0]]] = True
-    return out
 
 
 def penalty_error(A: np.ndarray, A_double: np.ndarray, G: np.ndarray, alpha: float,
@@ -66,7 +56,7 @@ def penalty_error(A: np.ndarray, A_double: np.ndarray, G: np.ndarray, alpha: flo
         return 0.0
     lam, left, right = sla.eig(A, left=True, right=True, check_finite=False)
     scale = RIGID_RTOL * max(1.0, float(np.abs(lam).max(initial=0.0)))
-    physical = ~constraint_modes(G, right[:n]) & (np.abs(lam) > scale)
+    physical = ~constraint_columns(G, right[:n]) & (np.abs(lam) > scale)
     if not physical.any():
         return 0.0
     y, x = left[:, physical], right[:, physical]
