@@ -289,6 +289,14 @@ def _energy(system: System, op: OperatingPoint, Q: np.ndarray, V: np.ndarray,
     return E, what
 
 
+def atol_length(system: System, q: np.ndarray) -> float | None:
+    """L [m] by which the default absolute tolerance of a length is :data:`ATOL` L (the robot's
+    characteristic length at ``q``), or None where the system has no linear coordinate."""
+    if not linear_coordinates(system).any():
+        return None
+    return characteristic_length(system, q)[0]
+
+
 def _time_grid(t: object) -> np.ndarray:
     """:func:`pinlin.arrays.sample_times`, at most :data:`MAX_SAMPLES` of them."""
     grid = sample_times(t)
@@ -428,9 +436,7 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
         stiffness, why = float("nan"), "given"
     length = None
     if atol is None:
-        atol = ATOL
-        if linear_coordinates(system).any():
-            length = characteristic_length(system, op.q)[0]
+        atol, length = ATOL, atol_length(system, op.q)
     Q, V, C, stats = _integrate(dyn, inputs, grid, s0, method, rtol,
                                 atol if length is None else
                                 lambda d: np.where(d.linear_state(), atol * length, atol))

@@ -81,14 +81,13 @@ import numpy as np
 
 from .arrays import non_numbers, read_only, real_array
 from .closed_loop import model_gain
-from .coordinates import characteristic_length, linear_coordinates
 from .exceptions import ArgumentError, ModelError, PinlinError
 from .linear_model import LinearModel
 from .linearization import _system, linearize
 from .modal import ModalAnalysis, modal
 from .response import response
 from .scene import POSITION_LIMIT
-from .simulation import ATOL, MAX_CYCLES, simulate
+from .simulation import ATOL, MAX_CYCLES, atol_length, simulate
 from .system import System
 from .validity_report import Bound, Case, Validity, notes
 
@@ -464,9 +463,8 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
     # larger than 1 m), else the atol given.
     noise_atol = atol
     if atol is None:
-        noise_atol = ATOL
-        if linear_coordinates(system).any():
-            noise_atol *= max(1.0, characteristic_length(system, system.scene_configuration)[0])
+        length = atol_length(system, system.scene_configuration)
+        noise_atol = ATOL * max(1.0, length or 1.0)
     _check_integration(rtol, noise_atol, tolerance, float(amps.min()))
     time_constants = _positive("time_constants", time_constants, "of time constants")
     horizon = None if horizon is None else _positive("horizon", horizon, "[s]")

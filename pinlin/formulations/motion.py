@@ -314,14 +314,14 @@ def linearize_moving_penalty(system, op: OperatingPoint, cp: ConstrainedPoint, *
 
     alpha, mu, omega = penalty_parameters(alpha, mu, omega)
     G, nv, S = cp.jacobian, system.nv, system.input_matrix
+    N = kinematic_block(system, op.v)   # Lie-group joints at a moving state (pinlin.chart)
 
     def linearized(alpha: float):
         pop, terms, C, K_extra, C_extra = _moving_penalty_terms(system, op, cp, alpha, mu,
                                                                  omega)
         A, B = penalty_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega,
                                    K_extra=K_extra, C_extra=C_extra)
-        N = kinematic_block(system, op.v)
-        if N is not None:  # Lie-group joints at a moving state (pinlin.chart)
+        if N is not None:
             A[:nv, :nv] = N
         return A, B, pop, terms, C, K_extra, C_extra
 
