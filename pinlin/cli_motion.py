@@ -453,7 +453,8 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
                                           "accurate for, per mode")
     val.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
     val.add_argument("--amplitudes", nargs="+", action="extend", type=float, default=None,
-                     help="initial amplitudes [rad or m] (default: a sweep)")
+                     help="initial amplitudes [rad, or L for a length: the robot's "
+                          "characteristic length, printed] (default: a sweep)")
     val.add_argument("--periods", type=float, default=5, help="horizon in periods (default 5)")
     val.add_argument("--tolerance", type=float, default=0.01,
                      help="relative error that limits the radius (default 0.01)")

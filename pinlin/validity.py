@@ -5,12 +5,20 @@ nonlinear motion (:func:`pinlin.simulate`) and the linear model's (:func:`pinlin
 ``method="exact"``) start from the same initial deviation ``a d`` for growing amplitudes a and
 are compared over a horizon T.
 
-**Initial state d.** The right eigenvector r of A, scaled so that its largest position entry
-is 1 (phase and size), gives d = Re(r) / max_j |Re(r_qj)|: the largest joint excursion of a d
-is exactly a [rad or m] (entries of mixed units, a floating base's [m] and [rad], are compared
-as numbers). An undamped mode starts from rest in its shape; a damped or real one with the
-velocity Re(lambda r_q). A direction (a coordinate name or a state vector) is scaled the same
-way; one with no position part by its largest velocity (a then in [rad/s or m/s]).
+**One unit.** Angles count in radians and lengths in units of L, the robot's characteristic
+length at the point (:func:`pinlin.coordinates.characteristic_length`, ``Validity.length``):
+w_j = 1 for an angle, 1/L for a length. Amplitudes, radii and errors are in that unit
+(``Case.unit`` ``"rad or L"``), so that a robot made smaller or larger has the same radius
+(``tests/test_scale_invariance.py``): in metres beside radians, a 61 um mechanism's default
+sweep began at 16 times its size. Where no coordinate of the model is a length, L plays no
+part (``Validity.length`` None, unit ``"rad or m"``, as before).
+
+**Initial state d.** The right eigenvector r of A, scaled so that its largest weighted
+position entry is 1 (phase and size), gives d = Re(r) / max_j w_j |Re(r_qj)|: the largest
+joint excursion of a d is exactly a [rad, or L for a length]. An undamped mode starts from
+rest in its shape; a damped or real one with the velocity Re(lambda r_q). A direction (a
+coordinate name or a state vector) is scaled the same way; one with no position part by its
+largest weighted velocity (a then in [rad/s, or L/s]).
 
 **Horizon T** (lambda = sigma + i w of the mode):
 
@@ -33,8 +41,8 @@ horizon of an unstable one (or ``horizon`` [s], which overrides every case).
 
     Dnl(t)  = z_nl(t; a d) - z_nl(t; 0)
     Dlin(t) = x_lin(t; a d) - x_lin(t; 0) = a e^{A t} d
-    e_q(a)  = max_t max_j |Dnl_qj - Dlin_qj| / max_t max_j |Dlin_qj|    (positions [rad or m])
-    e_v(a)  = the same over the velocities [rad/s or m/s]
+    e_q(a)  = max_t max_j w_j |Dnl_qj - Dlin_qj| / max_t max_j w_j |Dlin_qj|     (positions)
+    e_v(a)  = the same over the velocities
     e(a)    = max(e_q, e_v)                                              (the relative error)
 
 At an equilibrium both reference motions (from x0 = 0) are zero (the simulated one stays at
@@ -49,20 +57,23 @@ it.
 between the last amplitude within it and the first beyond, a is interpolated on log-log axes
 (the error is locally a power law e ~ a^(p-1)), simulated there, and the bracket narrowed by
 the same secant step (aimed at 0.985 tolerance) until 0.97 tolerance <= e <= tolerance (at
-most :data:`MAX_REFINE` steps; then the largest amplitude measured within the tolerance). With
+most :data:`~pinlin.validity_sweep.MAX_REFINE` steps; then the largest amplitude measured
+within the tolerance). With
 e ~ a^(p-1) near the radius, that 3% band in e is a band of 3% / (p - 1) in the radius: the
 radius lies within 3% / (p - 1) below the exact crossing (1.5% for the pendulum's p = 3).
 Bisection would need ~log2(2.15 / 0.015) = 7 simulations for the same; the secant, 1 or 2. The
 default amplitudes are :data:`DEFAULT_AMPLITUDES`; the sweep stops once e exceeds
-:data:`STOP_FACTOR` tolerance, after at least :data:`ORDER_POINTS` amplitudes (given
+:data:`~pinlin.validity_sweep.STOP_FACTOR` tolerance, after at least
+:data:`~pinlin.validity_sweep.ORDER_POINTS` amplitudes (given
 amplitudes are all measured). A failed simulation (a mechanism past a toggle position) counts
 as beyond the tolerance, its message kept.
 
 **Order.** ``slope`` p = d log E / d log a of the error in the state's units, E = e max|Dlin|;
 since max|Dlin| is proportional to a, p = 1 + the log-log slope of e, fitted by least squares
-over the :data:`ORDER_POINTS` smallest amplitudes whose e is above the integration noise
-(:func:`_floor`): the order as a -> 0, which is what tells the cases apart (the local slope
-grows with a as higher-order terms take over, e.g. from 2 to 2.5 for the four-bar by a = 0.05):
+over the :data:`~pinlin.validity_sweep.ORDER_POINTS` smallest amplitudes whose e is above
+the integration noise (:func:`pinlin.validity_sweep.noise_floor`): the order as a -> 0, which
+is what tells the cases apart (the local slope grows with a as higher-order terms take over,
+e.g. from 2 to 2.5 for the four-bar by a = 0.05):
 
 - p ~ 2: quadratic terms, the general smooth system about an equilibrium;
 - p ~ 3: no quadratic terms along the motion (an odd nonlinearity: a pendulum's sin(theta)
@@ -81,18 +92,21 @@ import numpy as np
 
 from .arrays import non_numbers, read_only, real_array
 from .closed_loop import model_gain
-from .exceptions import ArgumentError, ModelError, PinlinError
+from .coordinates import characteristic_length, linear_coordinates
+from .exceptions import ArgumentError, ModelError
 from .linear_model import LinearModel
 from .linearization import _system, linearize
 from .modal import ModalAnalysis, modal
-from .response import response
 from .scene import POSITION_LIMIT
-from .simulation import ATOL, MAX_CYCLES, atol_length, simulate
+from .simulation import ATOL, MAX_CYCLES
 from .system import System
 from .validity_report import Bound, Case, Validity, notes
+from .validity_sweep import FIRST_ORDER, NOISE_ATOL, NOISE_RTOL, Sweep
 
-#: Default amplitudes [rad or m]: 1 mrad to 1 rad, a factor 10^(1/3) = 2.15 apart.
+#: Default amplitudes [rad, or L for a length]: 1e-3 to 1, a factor 10^(1/3) = 2.15 apart.
 DEFAULT_AMPLITUDES = tuple(float(a) for a in np.geomspace(1e-3, 1.0, 10))
+#: The amplitudes' unit, in messages (module docstring: L the characteristic length).
+UNIT = "[rad, or L for a length]"
 #: Samples per period of the fastest oscillation (max-over-time undershoot <= 5e-4).
 SAMPLES_PER_PERIOD = 100
 #: Samples over the horizon of a real mode (and at least that many for any case).
@@ -104,24 +118,6 @@ DECAY = 10.0
 #: A real mode's horizon is at most SLOW_LIMIT periods of the model's fastest mode (a real
 #: eigenvalue just above rigid_tol would otherwise ask for ~1e6 of the solver's steps).
 SLOW_LIMIT = 1000.0
-#: The default sweep stops beyond STOP_FACTOR * tolerance.
-STOP_FACTOR = 10.0
-MAX_REFINE = 4
-#: The refinement aims at TARGET tolerance and accepts ACCEPT tolerance <= e <= tolerance.
-TARGET, ACCEPT = 0.985, 0.97
-#: Relative errors below NOISE_RTOL rtol + NOISE_ATOL atol / a are integration noise
-#: (:func:`_floor`); the order is fitted over the ORDER_POINTS smallest amplitudes above it,
-#: which the default sweep always measures. The atol term: measured at a = 1e-6 and 1e-5
-#: (where the true error is far below) 2-9 atol / a on the pendulum, double pendulum and UR5
-#: arm, but up to 200 atol / a on the four-bar and 130 on the upright double pendulum under
-#: LQR (DOP853's long steps, whose dense output the comparison samples); 1e3 leaves 5x.
-NOISE_RTOL, NOISE_ATOL = 1e3, 1e3
-ORDER_POINTS = 3
-#: Errors above SATURATION are left out of the order when two others remain (e ~ 1: the
-#: motions have parted, e stops growing).
-SATURATION = 0.3
-#: Orders below FIRST_ORDER say "first order"; from THIRD_ORDER up "third order".
-FIRST_ORDER, THIRD_ORDER = 1.5, 2.5
 _EXCLUDED_KINDS = ("rigid", "constraint")
 
 
@@ -135,10 +131,12 @@ def _positive(name: str, value: object, unit: str, upper: float = math.inf) -> f
     return float(value)
 
 
-def _check_integration(rtol: object, atol: object, tolerance: float, smallest: float) -> None:
-    """Refuse solver tolerances whose noise (:func:`_floor`: NOISE_RTOL rtol + NOISE_ATOL atol
-    / a) reaches the tolerance at the smallest amplitude: every error measured would be
-    noise, and the radius a verdict on the solver rather than the model."""
+def _check_integration(rtol: object, atol: object, tolerance: float, smallest: float,
+                       given: str = "") -> None:
+    """Refuse solver tolerances whose noise (:func:`pinlin.validity_sweep.noise_floor`:
+    NOISE_RTOL rtol + NOISE_ATOL atol / a) reaches the tolerance at the smallest amplitude:
+    every error measured would be noise, and the radius a verdict on the solver rather than
+    the model (``given``: how the atol, in the amplitudes' unit, came from the one given)."""
     rtol = _positive("rtol", rtol, "(relative, of the nonlinear simulation)")
     atol = _positive("atol", atol, "(absolute, of the nonlinear simulation)")
     if NOISE_RTOL * rtol >= tolerance:
@@ -148,7 +146,7 @@ def _check_integration(rtol: object, atol: object, tolerance: float, smallest: f
                                     f"{tolerance / NOISE_RTOL / 10:.1g}")
     if NOISE_ATOL * atol / smallest >= tolerance:
         raise ArgumentError("atol", f"at the smallest amplitude {smallest:g} the integration "
-                                    f"noise of atol = {atol:g} (~{NOISE_ATOL:g} atol / "
+                                    f"noise of atol = {atol:g}{given} (~{NOISE_ATOL:g} atol / "
                                     f"amplitude) reaches the tolerance {tolerance:g}: use "
                                     f"amplitudes >= {NOISE_ATOL * atol / tolerance * 10:.1g} "
                                     f"or atol <= {tolerance * smallest / NOISE_ATOL / 10:.1g}")
@@ -159,20 +157,20 @@ def _amplitudes(amplitudes: object) -> tuple[np.ndarray, bool]:
         return np.array(DEFAULT_AMPLITUDES), True
     bad = "text" if isinstance(amplitudes, str) else non_numbers(amplitudes)
     if bad:
-        raise ArgumentError("amplitudes", f"expected amplitudes [rad or m] as numbers, got "
+        raise ArgumentError("amplitudes", f"expected amplitudes {UNIT} as numbers, got "
                                           f"{bad}")
     try:
         arr = np.array(amplitudes, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise ArgumentError("amplitudes", "expected a sequence of amplitudes [rad or m], got "
+        raise ArgumentError("amplitudes", f"expected a sequence of amplitudes {UNIT}, got "
                                           f"{type(amplitudes).__name__}") from None
     if arr.size == 0:
-        raise ArgumentError("amplitudes", "expected at least one amplitude [rad or m], got an "
+        raise ArgumentError("amplitudes", f"expected at least one amplitude {UNIT}, got an "
                                           "empty sequence (or None for the default sweep)")
     ok = np.isfinite(arr) & (arr > 0.0) & (arr <= POSITION_LIMIT)
     if not ok.all():
         raise ArgumentError("amplitudes", f"expected finite amplitudes > 0 and <= "
-                                          f"{POSITION_LIMIT:g} [rad or m] (as a simulation's "
+                                          f"{POSITION_LIMIT:g} {UNIT} (as a simulation's "
                                           f"initial deviation), got {arr[~ok][:3]}")
     return np.unique(arr), False
 
@@ -227,8 +225,33 @@ def _select(ma: ModalAnalysis, modes: object, given_direction: bool) -> list[int
     return chosen
 
 
-def _direction(model: LinearModel, direction: object) -> tuple[np.ndarray, str, str]:
-    """(d (2n,), label, unit) of a coordinate name or a state vector."""
+def _unit_weights(system: System, model: LinearModel) -> tuple[float | None, np.ndarray]:
+    """(L [m] or None, w (n,)): the weights of the module docstring over the model's position
+    coordinates, 1 per rad and 1/L per m, L the characteristic length at the model's point;
+    (None, ones) where none of them is a length."""
+    n = model.n_states // 2
+    linear = linear_coordinates(system)
+    index = {name: k for k, name in enumerate(system.state_names[:system.nv])}
+    if any(name not in index for name in model.state_names[:n]):
+        raise ModelError(f"the linear model's coordinates {model.state_names[:n]} are not the "
+                         f"scene's {system.state_names[:system.nv]}")
+    mask = np.array([linear[index[name]] for name in model.state_names[:n]], dtype=bool)
+    if not mask.any():
+        return None, np.ones(n)
+    length = characteristic_length(system, model.operating_point.q)[0]
+    return length, np.where(mask, 1.0 / length, 1.0)
+
+
+def _units(length: float | None) -> tuple[str, str]:
+    """The units of a position and of a velocity amplitude (module docstring)."""
+    return ("rad or m", "rad/s or m/s") if length is None else ("rad or L", "rad/s or L/s")
+
+
+def _direction(model: LinearModel, direction: object, w: np.ndarray,
+               units: tuple[str, str]) -> tuple[np.ndarray, str, str]:
+    """(d (2n,), label, unit) of a coordinate name or a state vector, its largest weighted
+    position (else velocity) entry 1 (``w``: the weights of the module docstring, ``units``
+    their position and velocity units, :func:`_units`)."""
     n, names = model.n_states // 2, model.state_names
     d = np.zeros(2 * n)
     if isinstance(direction, str):
@@ -247,10 +270,10 @@ def _direction(model: LinearModel, direction: object) -> tuple[np.ndarray, str, 
                                              f"got {vec.size} numbers")
         d[:vec.size] = vec
         label = "direction"
-    scale = np.abs(d[:n]).max()
+    scale = np.abs(d[:n] * w).max()
     if scale > 0:
-        return d / scale, label, "rad or m"
-    return d / np.abs(d[n:]).max(), label, "rad/s or m/s"
+        return d / scale, label, units[0]
+    return d / np.abs(d[n:] * w).max(), label, units[1]
 
 
 def _mode_horizon(index: int, ma: ModalAnalysis, periods: float, time_constants: float
@@ -281,133 +304,6 @@ def _grid(T: float, period: float) -> np.ndarray:
     return np.linspace(0.0, T, int(np.clip(count, MIN_SAMPLES, MAX_SAMPLES)))
 
 
-class _Sweep:
-    """One case: measures e(a) (keeping every motion for the histories) and builds its Case."""
-
-    def __init__(self, system: System, model: LinearModel, d: np.ndarray, t: np.ndarray,
-                 options: dict, noise_atol: float) -> None:
-        self.system, self.d, self.t, self.options = system, d, t, options
-        self.noise_atol = noise_atol   # the atol of the noise floor (_floor) [rad or m]
-        self.n, self.names = model.n_states // 2, model.state_names
-        ref_lin = response(model, t, method="exact").x
-        self.unit_lin = response(model, t, x0=d, method="exact").x - ref_lin
-        self.reference = self._simulate(np.zeros_like(d))
-        self.count = 1
-        self.runs: dict[float, np.ndarray] = {}
-        self.rows: dict[float, tuple[float, float, float, str]] = {}
-
-    def _simulate(self, x0: np.ndarray) -> np.ndarray:
-        sim = simulate(self.system, self.t, dx0=x0, **self.options)
-        if sim.independent_names != self.names:
-            raise ModelError(f"the simulated coordinates {sim.independent_names} are not the "
-                             f"linear model's {self.names}")
-        return np.asarray(sim.z)
-
-    def measure(self, a: float) -> float:
-        """e at amplitude a (inf when the simulation fails); the row (e, e_q, e_v, failure)
-        is kept."""
-        self.count += 1
-        try:
-            dnl = self._simulate(a * self.d) - self.reference
-        except PinlinError as exc:
-            self.rows[a] = (math.inf, math.inf, math.inf, str(exc))
-            return math.inf
-        self.runs[a] = dnl
-        lin = a * self.unit_lin
-        parts = []
-        for cols in (slice(0, self.n), slice(self.n, 2 * self.n)):
-            peak = np.abs(lin[:, cols]).max()
-            parts.append(np.abs(dnl[:, cols] - lin[:, cols]).max() / peak if peak > 0 else 0.0)
-        self.rows[a] = (max(parts), parts[0], parts[1], "")
-        return max(parts)
-
-    def refine(self, lo: float, hi: float, tol: float) -> float:
-        """The radius between lo (e <= tol) and hi (e > tol) by log-log secant steps."""
-        radius = lo
-        for _ in range(MAX_REFINE):
-            elo, ehi = self.rows[lo][0], self.rows[hi][0]
-            if elo > 0.0 and math.isfinite(ehi) and ehi > elo:
-                guess = math.exp(math.log(lo) + math.log(TARGET * tol / elo)
-                                 * math.log(hi / lo) / math.log(ehi / elo))
-            else:                                   # a failure or a flat error: bisect
-                guess = math.sqrt(lo * hi)
-            guess = min(max(guess, lo * (hi / lo) ** 0.02), hi * (lo / hi) ** 0.02)
-            e = self.measure(guess)
-            if e > tol:
-                hi = guess
-                continue
-            lo = radius = guess
-            if e >= ACCEPT * tol:
-                break
-        return radius
-
-    def case(self, amps: np.ndarray, default: bool, tol: float, **about: object) -> Case:
-        """Sweep ``amps`` (stopping past STOP_FACTOR tol when ``default``), refine, and the
-        :class:`Case` (``about``: label, index, eigenvalue, kind, unit, horizon, rule)."""
-        for a in amps:
-            e = self.measure(float(a))
-            if default and len(self.rows) >= ORDER_POINTS and not e <= STOP_FACTOR * tol:
-                break
-        a = np.array(sorted(self.rows))
-        k, bound = _radius(a, np.array([self.rows[x][0] for x in a]), tol)
-        radius = self.refine(float(a[k]), float(a[k + 1]), tol) if bound is Bound.FOUND \
-            else float(a[k])
-        a = np.array(sorted(self.rows))
-        e, e_q, e_v = (read_only(np.array([self.rows[x][j] for x in a])) for j in range(3))
-        p, diagnosis = _order(a, e, self.options["rtol"], self.noise_atol)
-        dnl, n = self.runs.get(radius), self.n
-        return Case(
-            **about, direction=read_only(self.d.copy()), amplitudes=read_only(a), errors=e,
-            position_errors=e_q, velocity_errors=e_v,
-            failures=tuple(self.rows[x][3] for x in a), radius=radius, bound=bound,
-            error_at_radius=self.rows[radius][0],
-            excursions=read_only(radius * np.abs(self.d[:n])),
-            peak=math.nan if dnl is None else float(np.abs(dnl[:, :n]).max()),
-            slope=p, diagnosis=diagnosis, reference_drift=float(np.abs(self.reference).max()),
-            t=read_only(self.t.copy()), nonlinear=None if dnl is None else read_only(dnl),
-            linear=None if dnl is None else read_only(radius * self.unit_lin))
-
-
-def _radius(a: np.ndarray, e: np.ndarray, tol: float) -> tuple[int, Bound]:
-    """(index of the last amplitude before the first one beyond tol, bound)."""
-    beyond = np.flatnonzero(~(e <= tol))
-    if beyond.size == 0:
-        return a.size - 1, Bound.ABOVE_RANGE
-    if beyond[0] == 0:
-        return 0, Bound.BELOW_RANGE
-    return int(beyond[0]) - 1, Bound.FOUND
-
-
-def _order(a: np.ndarray, e: np.ndarray, rtol: float, atol: float) -> tuple[float, str]:
-    """(p, diagnosis) from the ORDER_POINTS smallest amplitudes with e above the noise (and
-    below SATURATION if two are)."""
-    ok = np.isfinite(e) & (e > _floor(a, rtol, atol))
-    saturated = ok & (e > SATURATION)
-    if (ok & ~saturated).sum() >= 2:
-        ok &= ~saturated
-    use = ok & (np.cumsum(ok) <= ORDER_POINTS)
-    if use.sum() < 2:
-        return math.nan, "order unknown: fewer than two errors above the integration noise"
-    p = 1.0 + float(np.polyfit(np.log(a[use]), np.log(e[use]), 1)[0])
-    if p < FIRST_ORDER:
-        what = ("first order: the linear model misses a first-order effect here; the point "
-                "is not an equilibrium of the simulated dynamics")
-    elif p < THIRD_ORDER:
-        what = "second order: quadratic terms, as expected of a smooth system at equilibrium"
-    else:
-        what = "third order: no quadratic terms along this motion (an odd nonlinearity)"
-    shown = ", ".join(f"{x:.3g}" for x in a[use])
-    note = f"; errors > {SATURATION:g}: the motions no longer alike" if np.any(
-        saturated[use]) else ""
-    return p, f"{what} (order {p:.2f} from a = {shown}{note})"
-
-
-def _floor(a: np.ndarray, rtol: float, atol: float) -> np.ndarray:
-    """Integration noise of e at amplitude a: NOISE_RTOL rtol + NOISE_ATOL atol / a (the
-    measurements beside those constants, with a 5-10x margin)."""
-    return NOISE_RTOL * rtol + NOISE_ATOL * atol / a
-
-
 def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = None,
              periods: float = 5, tolerance: float = 0.01, *, modes: object = None,
              direction: object = None, time_constants: float = 2.0,
@@ -419,8 +315,9 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
     Args:
         scene: A :class:`~pinlin.Scene`, its System, or a scene file / bundled scene / robot
             name (not a LinearModel: the scene is linearized and simulated here).
-        amplitudes: Amplitudes a [rad or m] (largest joint excursion of the initial state);
-            default :data:`DEFAULT_AMPLITUDES`, stopped past STOP_FACTOR tolerance.
+        amplitudes: Amplitudes a [rad, or L for a length] (largest joint excursion of the
+            initial state, module docstring); default :data:`DEFAULT_AMPLITUDES`, stopped past
+            STOP_FACTOR (:mod:`pinlin.validity_sweep`) tolerance.
         periods: Horizon in periods of each oscillatory mode (> 0).
         tolerance: Bound on the relative error e (0 < tolerance < 1), e.g. 0.01 for 1%.
         modes: Eigenvalue indices of ``pinlin.modal(model)`` (``Validity.modes``; the closed
@@ -459,16 +356,18 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
         raise ArgumentError("periods", f"expected at most {MAX_CYCLES:g} periods (each takes "
                                        f"the integrator ~10 steps), got {periods:g}")
     tolerance = _positive("tolerance", tolerance, "(relative error)", upper=1.0)
-    # The noise floor's atol: simulate's per-unit default at its largest (metres of a robot
-    # larger than 1 m), else the atol given.
-    noise_atol = atol
-    if atol is None:
-        length = atol_length(system, system.scene_configuration)
-        noise_atol = ATOL * max(1.0, length or 1.0)
-    _check_integration(rtol, noise_atol, tolerance, float(amps.min()))
+    _check_integration(rtol, ATOL if atol is None else atol, tolerance, float(amps.min()))
     time_constants = _positive("time_constants", time_constants, "of time constants")
     horizon = None if horizon is None else _positive("horizon", horizon, "[s]")
     model = linearize(system, q=q, v=v)
+    length, w = _unit_weights(system, model)
+    units = _units(length)
+    # The noise floor's atol in the amplitudes' unit: simulate's default is ATOL per rad and
+    # per L; an atol given in rad and m is atol / L per L.
+    noise_atol = ATOL if atol is None else atol * max(1.0, 1.0 / (length or 1.0))
+    if atol is not None and noise_atol != atol:
+        _check_integration(rtol, noise_atol, tolerance, float(amps.min()),
+                           f" per L ({atol:g} m with L = {length:.3g} m)")
     gain = None
     if feedback is not None:
         if callable(feedback):
@@ -488,17 +387,17 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
     jobs = []
     for i in chosen:
         r = ma.right_vectors[:, i]
-        r = np.real(r / r[int(np.argmax(np.abs(r[:n])))])
-        jobs.append((f"mode {ma.modes().index(i) + 1}", i, r / np.abs(r[:n]).max(), "rad or m",
-                     horizons[i]))
+        r = np.real(r / r[int(np.argmax(np.abs(r[:n]) * w))])
+        jobs.append((f"mode {ma.modes().index(i) + 1}", i, r / np.abs(r[:n] * w).max(),
+                     units[0], horizons[i]))
     if direction is not None:
-        d, label, unit = _direction(model, direction)
+        d, label, unit = _direction(model, direction, w, units)
         jobs.append((label, None, d, unit, _direction_horizon(ma, horizons, horizon)))
     cases, count = [], 0
     for label, i, d, unit, (T, period, rule) in jobs:
         if horizon is not None:
             T, rule = horizon, "given"
-        sweep = _Sweep(system, model, d, _grid(T, period), options, noise_atol)
+        sweep = Sweep(system, model, d, _grid(T, period), options, noise_atol, w)
         cases.append(sweep.case(amps, default, tolerance, label=label, index=i, unit=unit,
                                 eigenvalue=None if i is None else complex(ma.eigenvalues[i]),
                                 kind="direction" if i is None else ma.kind(i), horizon=T,
@@ -509,7 +408,8 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
                     equilibrium=drift == 0.0, drift=drift,
                     notes=tuple(notes(cases, drift, tolerance, FIRST_ORDER)),
                     seconds=time.perf_counter() - start, simulations=count,
-                    coordinate_names=tuple(s.removeprefix("q:") for s in model.state_names[:n]))
+                    coordinate_names=tuple(s.removeprefix("q:") for s in model.state_names[:n]),
+                    length=length, weights=read_only(w))
 
 
 def _direction_horizon(ma: ModalAnalysis, horizons: dict[int, tuple[float, float, str]],

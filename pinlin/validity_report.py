@@ -53,8 +53,11 @@ class Case:
         index: Eigenvalue index in ``Validity.modes`` (None for a direction).
         eigenvalue: lambda [1/s] (None for a direction).
         kind: :meth:`ModalAnalysis.kind` of the mode, or ``"direction"``.
-        direction: (2n,) initial state per unit amplitude, largest |position| entry 1.
-        unit: Unit of the amplitudes: ``"rad or m"`` (``"rad/s or m/s"`` for a pure velocity).
+        direction: (2n,) initial state per unit amplitude [rad or m], largest weighted
+            |position| entry 1 (``Validity.weights``).
+        unit: Unit of the amplitudes: ``"rad or L"``, a length's in units of ``Validity.length``
+            (``"rad/s or L/s"`` for a pure velocity); ``"rad or m"`` (``"rad/s or m/s"``) where
+            no coordinate is a length.
         horizon: T [s]; ``horizon_rule``: how it was chosen.
         amplitudes: (k,) increasing, in ``unit``.
         errors, position_errors, velocity_errors: (k,) e, e_q, e_v (inf: simulation failed).
@@ -63,10 +66,12 @@ class Case:
         bound: :class:`Bound`.
         error_at_radius: e at ``radius``.
         excursions: (n,) |joint excursions| at t = 0 at the radius [rad or m], radius |d_q|.
-        peak: max_t max_j |Dnl_qj| at the radius [rad or m] (grows past radius when unstable).
+        peak: max_t max_j w_j |Dnl_qj| at the radius, in ``unit`` (grows past radius when
+            unstable).
         slope: Order p of the error (:mod:`pinlin.validity`); NaN with fewer than two points.
         diagnosis: What p says.
-        reference_drift: max_t max_j |z_nl(t; 0)|, the unperturbed motion (0 at equilibrium).
+        reference_drift: max_t max_j w_j |z_nl(t; 0)|, the unperturbed motion (0 at
+            equilibrium).
         t, nonlinear, linear: Time [s] and Dnl, Dlin (N, 2n) at the radius (None if none ran).
     """
 
@@ -110,6 +115,11 @@ class Validity:
         drift: max |f0| [rad/s, m/s, rad/s^2 or m/s^2] (0 at an equilibrium).
         notes: What the user should know (equilibrium, failures, first-order errors).
         seconds: Wall time [s]; simulations: nonlinear simulations run.
+        coordinate_names: The model's position coordinates (joint names).
+        length: L [m], the unit of a length in the amplitudes (the robot's characteristic
+            length at the point), or None where no coordinate of the model is a length.
+        weights: (n,) w_j, 1 per rad and 1/L per m of each position coordinate (and of its
+            velocity): errors and amplitudes are measured in w_j-weighted entries.
     """
 
     name: str
@@ -125,10 +135,12 @@ class Validity:
     seconds: float
     simulations: int
     coordinate_names: tuple[str, ...] = field(default=())
+    length: float | None = None
+    weights: np.ndarray | None = None
 
     @property
     def radius(self) -> np.ndarray:
-        """(cases,) the validity radius of each case, in its ``unit`` [rad or m]."""
+        """(cases,) the validity radius of each case, in its ``unit``."""
         return np.array([c.radius for c in self.cases])
 
     @property
@@ -180,6 +192,13 @@ def notes(cases: list[Case], drift: float, tol: float, first_order: float) -> li
     return out
 
 
+def _dominant(result: Validity, c: Case) -> int:
+    """Index of the case's largest weighted position entry (its dominant coordinate)."""
+    n = len(result.coordinate_names)
+    w = np.ones(n) if result.weights is None else result.weights
+    return int(np.argmax(np.abs(c.direction[:n]) * w))
+
+
 def _eigenvalue(c: Case) -> str:
     if c.eigenvalue is None:
         return "-"
@@ -203,14 +222,16 @@ def table(result: Validity, sweeps: bool = True) -> str:
              f"<= {_percent(result.tolerance)} over {result.periods:g} periods "
              f"({result.time_constants:g} time constants for real modes); "
              f"{result.simulations} simulations, {result.seconds:.1f} s"]
+    if result.length is not None:
+        lines.append(f"amplitudes in rad, and in units of L = {result.length:.4g} m (the "
+                     "robot's characteristic length) for lengths")
     head = (f"{'case':<22} {'kind':<13} {'eigenvalue [1/s]':>22} {'T [s]':>8} "
             f"{'radius':>10} {'unit':<8} {'bound':<6} {'e(radius)':>9} {'peak':>9} "
             f"{'order':>5}  dominant coordinate")
     lines += [head, "-" * len(head)]
     for c in result.cases:
-        dom = result.coordinate_names[int(np.argmax(np.abs(c.direction[:len(
-            result.coordinate_names)])))] if result.coordinate_names else "-"
-        unit = "rad|m" if c.unit == "rad or m" else "rad/s|m/s"
+        dom = result.coordinate_names[_dominant(result, c)] if result.coordinate_names else "-"
+        unit = c.unit.replace(" or ", "|")
         order = "-" if not math.isfinite(c.slope) else f"{c.slope:.2f}"
         bound = {"found": "=", "above": ">=", "below": "<"}[c.bound.value]
         lines.append(f"{c.label:<22.22} {c.kind:<13} {_eigenvalue(c):>22} {c.horizon:>8.3g} "
@@ -270,8 +291,9 @@ def _histories(result: Validity) -> object:
                              gridspec_kw={"width_ratios": [3, 2]})
     n = len(result.coordinate_names)
     for row, c in zip(axes, cases, strict=False):
-        j = int(np.argmax(np.abs(c.direction[:n])))
+        j = _dominant(result, c)
         name = result.coordinate_names[j]
+        w = np.ones(2 * n) if result.weights is None else np.tile(result.weights, 2)
         row[0].plot(c.t, c.nonlinear[:, j], "-", lw=1.4, label="nonlinear (simulate)")
         row[0].plot(c.t, c.linear[:, j], "--", lw=1.2, label="linear (exact)")
         row[0].set_ylabel(f"d{name}")
@@ -281,8 +303,8 @@ def _histories(result: Validity) -> object:
         row[0].legend(fontsize=7, loc="upper right")
         for cols, what, color in ((slice(0, n), "positions", "C3"),
                                   (slice(n, 2 * n), "velocities", "C2")):
-            diff = np.abs(c.nonlinear[:, cols] - c.linear[:, cols]).max(axis=1)
-            peak = np.abs(c.linear[:, cols]).max()
+            diff = (np.abs(c.nonlinear - c.linear) * w)[:, cols].max(axis=1)
+            peak = (np.abs(c.linear) * w)[:, cols].max()
             if peak > 0:
                 row[1].plot(c.t, 100 * np.maximum.accumulate(diff) / peak, color=color, lw=1.2,
                             label=f"{what} (max so far)")
@@ -315,8 +337,12 @@ def _errors(result: Validity) -> object:
             ax.plot(c.amplitudes[failed], np.full(failed.sum(), 1.0), "x", color=color)
     ax.axhline(result.tolerance, color="k", ls="--", lw=1,
                label=f"tolerance {_percent(result.tolerance)}")
-    ax.set_xlabel("amplitude a (largest joint excursion) [rad or m]")
-    ax.set_ylabel("relative error e = max|Dnl - Dlin| / max|Dlin|")
+    units = sorted({c.unit for c in result.cases if not c.unit.startswith("rad/s")}) or \
+        sorted({c.unit for c in result.cases})
+    length = "" if result.length is None else f", L = {result.length:.3g} m"
+    ax.set_xlabel(f"amplitude a (largest joint excursion) [{' | '.join(units)}{length}]")
+    ax.set_ylabel("relative error e = max|Dnl - Dlin| / max|Dlin|" if result.length is None
+                  else "relative error e = max w|Dnl - Dlin| / max w|Dlin|")
     ax.set_title(f"{result.name}: error vs amplitude (order p: e ~ a^(p-1))", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)

@@ -344,3 +344,69 @@ def test_the_sensitivity_check_moves_alike_at_any_size(tmp_path, s, k):
         move[slider] /= scale
         moves.append(move)
     np.testing.assert_allclose(moves[1], moves[0], rtol=1e-9, atol=0)
+
+
+def cart_pole(s: float, k: float, tmp: Path) -> pinlin.Scene:
+    """A cart on a spring (prismatic x) carrying a hanging pendulum (revolute y): 2 kg cart,
+    1 kg bob 1 m below the hinge, spring 50 N/m, all scaled by lengths s and masses k (module
+    docstring: the spring by k / s). Its two modes mix metres and radians."""
+    urdf = tmp / f"cart_pole_{s:g}_{k:g}.urdf"
+    inertia = repr(1e-3 * k * s * s)
+    urdf.write_text(f"""<?xml version="1.0"?>
+<robot name="cart_pole">
+  <link name="base"/>
+  <link name="cart"><inertial><mass value="{2.0 * k!r}"/>
+    <inertia ixx="{inertia}" ixy="0" ixz="0" iyy="{inertia}" iyz="0" izz="{inertia}"/>
+  </inertial></link>
+  <link name="bob"><inertial><origin xyz="0 0 {-s!r}"/><mass value="{k!r}"/>
+    <inertia ixx="{inertia}" ixy="0" ixz="0" iyy="{inertia}" iyz="0" izz="{inertia}"/>
+  </inertial></link>
+  <joint name="slide" type="prismatic"><parent link="base"/><child link="cart"/>
+    <axis xyz="1 0 0"/><limit lower="-1e3" upper="1e3" effort="1" velocity="1"/></joint>
+  <joint name="hinge" type="revolute"><parent link="cart"/><child link="bob"/>
+    <axis xyz="0 1 0"/><limit lower="-3.14" upper="3.14" effort="1" velocity="1"/></joint>
+</robot>""")
+    return pinlin.Scene.from_urdf(
+        urdf, name="cart_pole", base="fixed",
+        effects={"gravity": [0.0, 0.0, -9.81],
+                 "springs": {"slide": {"stiffness": 50.0 * k / s, "rest": 0.0}}},
+        operating_point={"q": {"slide": 0.0, "hinge": 0.0}, "solve": "positions"})
+
+
+@pytest.mark.parametrize("s, k", [(2.0 ** -14, 2.0 ** -8), (2.0 ** 8, 2.0 ** 20)])
+def test_validity_finds_the_same_radius_at_any_size(tmp_path, s, k):
+    """pinlin.validity's amplitudes count lengths in units of L, the robot's characteristic
+    length: a cart-pole (modes mixing m and rad) and the slider-crank parametrized by its
+    slider (a length its only coordinate) have the same radii, initial states and orders at
+    any size. In metres beside radians the cart-pole's modes were normalized by their radian
+    entry at 61 um and by their metre entry at 256 m, and the slider-crank's sweep began at
+    1 mm, 16 times the size of the 61 um mechanism (radius 0.001, "below range", against
+    0.0022 m at 1 m). Scaled, the problem is the original's times powers of 2 (module
+    docstring) and the simulations run alike; the integration noise the tolerance leaves,
+    NOISE_RTOL rtol = 1e-7 of the error e ~ 1e-2, moves the radius by ~1e-5 relative at
+    order p ~ 2 (measured 2e-9): 1e-5. The order is fitted where e is smallest, ~1e-6 for
+    the cart-pole's p = 3, so the same noise moves it by ~1e-4 (measured 9e-5): 1e-3."""
+    spec = dataclasses.replace(
+        scaled_scene("slider_crank", 1.0, 1.0, tmp_path).operating_point,
+        independent=("slider",))
+    results = []
+    for scale, mass in ((1.0, 1.0), (s, k)):
+        crank = scaled_scene("slider_crank", scale, mass, tmp_path)
+        by_slider = dataclasses.replace(crank, operating_point=dataclasses.replace(
+            crank.operating_point, independent=spec.independent))
+        results.append([pinlin.validity(by_slider, periods=2),
+                        pinlin.validity(cart_pole(scale, mass, tmp_path), periods=2)])
+    for ref, res in zip(*results, strict=True):
+        assert ref.length is not None and res.length == pytest.approx(ref.length * s, rel=1e-12)
+        assert [c.unit for c in res.cases] == ["rad or L"] * len(ref.cases)
+        for c_ref, c in zip(ref.cases, res.cases, strict=True):
+            assert c.bound is c_ref.bound is pinlin.validity_report.Bound.FOUND
+            assert c.radius == pytest.approx(c_ref.radius, rel=1e-5)
+            assert c.slope == pytest.approx(c_ref.slope, abs=1e-3)   # reported to 0.01
+            # The initial state in rad and L (its metres scale by s), velocities per second
+            # of the scaled time.
+            n = len(res.weights)
+            time = np.repeat([1.0, s ** 0.5], n)
+            np.testing.assert_allclose(c.direction * np.tile(res.weights, 2) * time,
+                                       c_ref.direction * np.tile(ref.weights, 2), rtol=1e-6,
+                                       atol=1e-12)

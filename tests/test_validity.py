@@ -24,6 +24,7 @@ from pinlin.validity import Bound
 
 #: The module (``pinlin.validity`` is the function): its constants and planted failures.
 VM = importlib.import_module("pinlin.validity")
+VS = importlib.import_module("pinlin.validity_sweep")   # the sweep: simulate, the order
 
 G = 9.81
 #: urdf/pendulum.urdf: 1 kg sphere (r = 0.05 m) 1 m below the hinge: J = 1 + 2/5 * 0.05^2.
@@ -116,7 +117,7 @@ def test_perturbed_u0_gives_first_order_error_at_small_amplitudes():
     point = dataclasses.replace(scene.operating_point, solve="none", u={"hinge": 0.05})
     result = pinlin.validity(dataclasses.replace(scene, operating_point=point),
                                       [1e-3, 2e-3, 4e-3])
-    assert not result.equilibrium and result.slope[0] < VM.FIRST_ORDER
+    assert not result.equilibrium and result.slope[0] < VS.FIRST_ORDER
     assert result.cases[0].reference_drift > 1e-3   # the unperturbed motion [rad, rad/s]
 
 
@@ -226,7 +227,7 @@ def test_order_leaves_out_integration_noise_and_saturated_errors():
     case = result.cases[0]
     assert case.bound is Bound.ABOVE_RANGE
     assert case.errors[0] > 1e3 * 2 * math.pi * 5 * 1e-14 / 16    # noise, not the error
-    assert case.errors[-1] > VM.SATURATION
+    assert case.errors[-1] > VS.SATURATION
     assert case.slope == pytest.approx(3.0, abs=0.02)
     assert "from a = 0.002, 0.004)" in case.diagnosis
 
@@ -234,14 +235,14 @@ def test_order_leaves_out_integration_noise_and_saturated_errors():
 def test_failed_simulations_count_as_beyond_tolerance(monkeypatch):
     """A mechanism can leave its assembly branch at large amplitudes: simulate raises
     ModelError, the amplitude counts as beyond the tolerance and the note names it."""
-    real = VM.simulate
+    real = VS.simulate
 
     def failing(system, t, dx0=None, **options):
         if dx0 is not None and np.abs(dx0).max() > 0.06:
             raise pinlin.ModelError("the loops do not close (planted)")
         return real(system, t, dx0=dx0, **options)
 
-    monkeypatch.setattr(VM, "simulate", failing)
+    monkeypatch.setattr(VS, "simulate", failing)
     result = pinlin.validity("pendulum", [0.01, 0.02, 0.04, 0.1])
     case = result.cases[0]
     assert case.bound is Bound.FOUND and case.radius <= 0.06
@@ -279,7 +280,8 @@ def test_result_is_read_only(pendulum):
     ({"tolerance": 1.5}, pinlin.ArgumentError, r"tolerance.*> 0 and < 1"),
     ({"tolerance": True}, pinlin.ArgumentError, r"tolerance.*expected a number.*got bool"),
     ({"amplitudes": []}, pinlin.ArgumentError,
-     r"amplitudes.*expected at least one amplitude \[rad or m\], got an empty sequence"),
+     r"amplitudes.*expected at least one amplitude \[rad, or L for a length\], got an empty "
+     r"sequence"),
     ({"amplitudes": [0.1, -0.1]}, pinlin.ArgumentError, r"amplitudes.*> 0"),
     ({"amplitudes": [0.1, math.nan]}, pinlin.ArgumentError, r"amplitudes.*finite"),
     ({"amplitudes": "0.1"}, pinlin.ArgumentError, r"amplitudes.*got text"),
@@ -365,14 +367,14 @@ def test_cli_modes_are_the_mode_table_rows(capsys):
 def test_plots_leave_out_cases_whose_simulation_failed(monkeypatch, tmp_path):
     """A case whose every nonlinear run failed has no motion to draw (the plot raised
     TypeError on it)."""
-    real = VM.simulate
+    real = VS.simulate
 
     def failing(system, t, dx0=None, **options):
         if np.any(dx0):     # the unperturbed reference runs, every perturbed one fails
             raise pinlin.ModelError("the loops do not close (planted)")
         return real(system, t, dx0=dx0, **options)
 
-    monkeypatch.setattr(VM, "simulate", failing)
+    monkeypatch.setattr(VS, "simulate", failing)
     result = pinlin.validity("pendulum", [0.01, 0.02])
     assert result.cases[0].nonlinear is None
     paths = result.plot(tmp_path, "failed")

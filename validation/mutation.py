@@ -530,6 +530,10 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
         '        model = model.closed_loop(-gain[0])',
         "pinlin response --feedback closes the loop with the gain's sign flipped"),
+    'validity_amplitude_in_metres': (
+        'pinlin/validity.py', "length, w = _unit_weights(system, model)",
+        "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
+        "validity measures a length's amplitude and error in metres beside radians"),
 }
 
 

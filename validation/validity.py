@@ -151,11 +151,12 @@ def _write_index(rows: dict[str, str]) -> None:
     order = list(SYSTEMS) + sorted(set(rows) - set(SYSTEMS))
     lines = ["# Validity radius of the linear models", "",
              f"Produced by `python validation/validity.py`: for each mode, the largest motion "
-             f"(largest joint excursion [rad or m]) for which the linear model's relative error "
+             f"(largest joint excursion, in rad, and in units of the robot's characteristic "
+             f"length L for a length) for which the linear model's relative error "
              f"stays within {100 * TOLERANCE:g}% over {PERIODS:g} periods (2 time constants "
              "for real modes; unstable ones until e^2 growth). Method and definitions: "
              "[pinlin/validity.py](../../../pinlin/validity.py).", "",
-             "| system | point | cases | smallest radius [rad or m] | order per case | "
+             "| system | point | cases | smallest radius [rad or L] | order per case | "
              "simulations | time [s] |", "|---|---|---|---|---|---|---|"]
     lines += [rows[n] for n in order if n in rows]
     write_text_atomic(INDEX, "\n".join(lines) + "\n")
