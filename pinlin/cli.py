@@ -193,7 +193,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def _cmd_export_mjcf(args: argparse.Namespace) -> int:
     from .files import check_file_target, write_text_atomic
     from .linearization import linearize, operating_point
-    from .mjcf import build, check_resolved, check_time_step, to_xml
+    from .mjcf import build, check_resolved, check_time_step
+    from .mjcf_xml import to_xml
 
     dt = check_time_step(args.dt, "--dt")
     out = Path(args.output)

@@ -8,7 +8,7 @@ from typing import NoReturn
 import numpy as np
 import pinocchio as pin
 
-from .conditioning import refuse_condition, scaled_condition
+from .conditioning import refuse_condition, scaled_condition, singular_to_working_precision
 from .exceptions import ModelError
 
 
@@ -99,3 +99,32 @@ def _join(items: list[str]) -> str:
     """"a", "a and b", "a, b and c"."""
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1] \
         if items else ""
+
+
+def checked_inverse(system, q: np.ndarray, M: np.ndarray, Minv: np.ndarray,
+                    allow_ill_conditioned: bool = False) -> np.ndarray:
+    """Minv = M(q)^-1 as computed, once M (only its upper triangle and diagonal are read) and
+    Minv pass :meth:`pinlin.System.mass_inverse`'s checks (see :mod:`pinlin.conditioning`);
+    raises as that method says (:func:`raise_singular`)."""
+    diag = Minv.diagonal()
+    n = diag.size
+    if not n:
+        return Minv
+    # The usual case in one dot product and one min: n sum M_ii Minv_ii = tr(Ms) tr(Ms^-1)
+    # >= cond_2(Ms) for M^-1 positive definite, Ms the unit-diagonal scaling of M. A sum
+    # that is finite leaves no inf or NaN on the diagonal (an inf term makes it +-inf or
+    # NaN); the checks below then take the same branch as this one. (np.vdot: BLAS ddot,
+    # which raises no floating-point warning for inf * 0, unlike the matmul ufunc.)
+    bound = n * float(np.vdot(M.diagonal(), diag))
+    if 0.0 < bound < system._refuse_limit and diag.min() > 0.0:   # False for NaN
+        return Minv
+    # A coordinate that moves no inertia makes its row of M^-1 inf or NaN, diagonal included
+    # (NaN compares False).
+    if not (diag.max() < np.inf and diag.min() > -np.inf):
+        raise_singular(system, q, liftable=False)
+    condition = singular_to_working_precision(np.triu(M) + np.triu(M, 1).T, bound)
+    if condition is None and diag.min() <= 0.0:  # M^-1 indefinite although M is not
+        condition = float("inf")
+    if condition is not None and not allow_ill_conditioned:
+        raise_singular(system, q, liftable=True)
+    return Minv

@@ -18,13 +18,12 @@ import copy
 import functools
 import threading
 from pathlib import Path
-from typing import NoReturn
 
 import numpy as np
 import pinocchio as pin
 
 from .arrays import complement, read_only
-from .conditioning import refuse_condition, singular_to_working_precision
+from .conditioning import refuse_condition
 from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configuration: re-exported)
     FREE_FLYER,
     SPHERICAL,
@@ -41,6 +40,7 @@ from .coordinates import (  # noqa: F401  (SPHERICAL, OutputMap, one_dof_configu
     spring_vectors,
 )
 from .exceptions import SceneError, UnknownNameError
+from .mass_diagnosis import checked_inverse
 from .robots import load_robot, robot_model
 from .scene import Scene
 from .urdf_io import load_urdf
@@ -433,36 +433,8 @@ class System:
                            allow_ill_conditioned: bool = False) -> np.ndarray:
         """:meth:`mass_inverse`'s checks of M(q) (only its upper triangle and diagonal are
         read) and of Minv = M(q)^-1 as computed; returns Minv. Raises as
-        :meth:`mass_inverse`."""
-        diag = Minv.diagonal()
-        n = diag.size
-        if not n:
-            return Minv
-        # The usual case in one dot product and one min: n sum M_ii Minv_ii = tr(Ms) tr(Ms^-1)
-        # >= cond_2(Ms) for M^-1 positive definite, Ms the unit-diagonal scaling of M. A sum
-        # that is finite leaves no inf or NaN on the diagonal (an inf term makes it +-inf or
-        # NaN); the checks below then take the same branch as this one. (np.vdot: BLAS ddot,
-        # which raises no floating-point warning for inf * 0, unlike the matmul ufunc.)
-        bound = n * float(np.vdot(M.diagonal(), diag))
-        if 0.0 < bound < self._refuse_limit and diag.min() > 0.0:   # False for NaN
-            return Minv
-        # A coordinate that moves no inertia makes its row of M^-1 inf or NaN, diagonal included
-        # (NaN compares False).
-        if not (diag.max() < np.inf and diag.min() > -np.inf):
-            self._raise_singular(q, liftable=False)
-        condition = singular_to_working_precision(np.triu(M) + np.triu(M, 1).T, bound)
-        if condition is None and diag.min() <= 0.0:  # M^-1 indefinite although M is not
-            condition = float("inf")
-        if condition is not None and not allow_ill_conditioned:
-            self._raise_singular(q, liftable=True)
-        return Minv
-
-    def _raise_singular(self, q: np.ndarray, liftable: bool) -> NoReturn:
-        """A :class:`ModelError` that says why M(q) is singular
-        (:func:`pinlin.mass_diagnosis.raise_singular`)."""
-        from .mass_diagnosis import raise_singular
-
-        raise_singular(self, q, liftable)
+        :meth:`mass_inverse` (:func:`pinlin.mass_diagnosis.checked_inverse`)."""
+        return checked_inverse(self, q, M, Minv, allow_ill_conditioned)
 
     def applied_force(self, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
         """S u + tau_spring(q) - D v: the generalized force of the inputs, springs and
