@@ -13,6 +13,7 @@ import weakref
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -21,7 +22,7 @@ from .arrays import real_array, restore_read_only
 from .exceptions import ArgumentError, ModelError, ShapeError
 from .fields import show
 from .linear_model import LinearModel
-from .model_checks import name_tuple
+from .model_checks import check_second_order, name_tuple
 from .operating_point import OperatingPoint
 
 #: Key of a model's record of where its arrays came from (:mod:`pinlin.trajectory_buffers`):
@@ -160,6 +161,8 @@ class TrajectoryModel:
             raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
         object.__setattr__(self, "info", dict(self.info))
         _check_info(self)
+        _check_rest_drift(self)
+        _check_second_order_points(self)
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickling: the fields, without the record of the arrays' origin
@@ -216,7 +219,7 @@ class TrajectoryModel:
         k = int(k) % N
         q, v, u, a = self.q[k], self.v[k], self.u[k], _own(self.a[k])
         rest = bool(self.info.get("at_rest"))  # a schedule of rest points (rest_schedule)
-        moving = bool(v.any() or a.any()) or (self.lam is not None and not rest)
+        moving = bool(_moving(self)[k])
         when = f" (t = {self.t[k]:.6g} s)" if self.t is not None else ""
         note = (f"point {k} of {N} of a schedule of rest points{when}: the inputs that hold q "
                 "were solved; the residual is not kept in a batch" if rest else
@@ -313,6 +316,51 @@ class TrajectoryModel:
         from .trajectory_files import load_trajectory_model
 
         return load_trajectory_model(path, cls)
+
+
+def _moving(model: TrajectoryModel) -> np.ndarray:
+    """(N,) which points :meth:`TrajectoryModel.at` gives as moving (with their f0): a
+    velocity or acceleration, or constraint forces outside a schedule of rest points (a
+    falling point opted in)."""
+    moving = model.v.any(axis=1) | model.a.any(axis=1)
+    if model.lam is not None and not model.info.get("at_rest"):
+        moving = np.ones_like(moving)
+    return moving
+
+
+def _check_rest_drift(model: TrajectoryModel) -> None:
+    """Refuse a drift f0 at a point at rest: :meth:`TrajectoryModel.at` gives such a point as
+    an equilibrium, without f0, so a drift there (a file edited by hand) would be dropped.
+
+    Raises:
+        ArgumentError: naming the first such point and its largest |f0|.
+    """
+    still = ~_moving(model)
+    drifting = np.flatnonzero(still & model.f0.any(axis=1))
+    if drifting.size:
+        k = int(drifting[0])
+        raise ArgumentError("f0", f"point {k} is at rest (v = 0, a = 0) but its drift f0 is "
+                                  f"not zero (max |f0| = {np.abs(model.f0[k]).max():.3g}, "
+                                  f"{drifting.size} such point(s)): a point at rest has no "
+                                  "drift; give its velocity and acceleration, or f0 = 0")
+
+
+def _check_second_order_points(model: TrajectoryModel) -> None:
+    """:func:`pinlin.model_checks.check_second_order` at every point: M, C_damp, K and Bu
+    describe the dynamics of A and B (:func:`pinlin.modal` reads them in place of A).
+
+    Raises:
+        ModelError: naming the point, the block and the residual.
+    """
+    if model.M is None or model.dt:
+        return
+    for k in range(len(model)):
+        try:
+            check_second_order(SimpleNamespace(
+                name=model.name, dt=0.0, A=model.A[k], B=model.B[k], M=model.M[k],
+                C_damp=model.C_damp[k], K=model.K[k], Bu=model.Bu[k]))
+        except ModelError as exc:
+            raise ModelError(f"point {k} of {len(model)}: {exc}") from None
 
 
 def _check_widths(model: TrajectoryModel, n: int) -> None:

@@ -143,6 +143,51 @@ def test_second_order_matrices_come_together():
                                Bu=traj.Bu)
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".mat"])
+def test_a_file_whose_second_order_matrices_disagree_with_a_is_refused(suffix, tmp_path):
+    """pinlin.modal reads M, K and C_damp in place of A: a trajectory file whose K was
+    changed (x3 at the last point) loaded, and modal gave that point other eigenvalues than
+    A has (4.96 and 11.7 against 2.86 and 6.78 rad/s), while the single model saved from it
+    was refused by LinearModel.load. The same check now runs at every point."""
+    scene = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml")
+    traj = pinlin.linearize_trajectory(scene, np.array([[0.1, 0.2], [0.3, 0.1]]),
+                                       second_order=True)
+    path = traj.save(tmp_path / f"good{suffix}")
+    assert pinlin.TrajectoryModel.load(path).K is not None
+    fields = {k: getattr(traj, k) for k in ("A", "B", "C", "D", "f0", "q", "v", "u", "a",
+                                            "state_names", "input_names", "output_names",
+                                            *SECOND)}
+    K = np.array(traj.K)
+    K[1] *= 3.0
+    with pytest.raises(pinlin.ModelError, match=r"point 1 of 2: .*second-order matrices "
+                                                r"describe other dynamics.*M A\[nv:, :nv\] \+ K"):
+        pinlin.TrajectoryModel(**{**fields, "K": K})
+    bad = pinlin.TrajectoryModel.trusted(**{**traj.__dict__, "K": K})
+    with pytest.raises(pinlin.ModelFileError, match=r"bad\.\w+: inconsistent trajectory "
+                                                    r"model: point 1 of 2: "):
+        pinlin.TrajectoryModel.load(bad.save(tmp_path / f"bad{suffix}"))
+
+
+def test_a_drift_at_a_point_at_rest_is_refused(tmp_path):
+    """At a point at rest (v = 0, a = 0) TrajectoryModel.at gives an equilibrium, without
+    f0: a drift there in a file (edited by hand) was dropped, and the response from that
+    point stayed at 0 where f0 = 5 rad/s^2 moves it."""
+    scene = pinlin.Scene.load(URDF_DIR / "double_pendulum.toml")
+    traj = pinlin.linearize_trajectory(scene, np.array([[0.1, 0.2], [0.3, 0.1]]))
+    assert not np.any(traj.f0) and traj.at(0).f0 is None
+    f0 = np.array(traj.f0)
+    f0[:, 3] = 5.0
+    bad = pinlin.TrajectoryModel.trusted(**{**traj.__dict__, "f0": f0})
+    with pytest.raises(pinlin.ModelFileError, match=r"argument 'f0': point 0 is at rest .*"
+                                                    r"\(max \|f0\| = 5, 2 such point"):
+        pinlin.TrajectoryModel.load(bad.save(tmp_path / "bad.npz"))
+    # A moving point keeps its drift (x' = f0 + A x + B u).
+    moving = pinlin.linearize_trajectory(scene, np.array([[0.1, 0.2]]), np.array([[0.5, 0.0]]),
+                                         np.zeros((1, 2)))
+    back = pinlin.TrajectoryModel.load(moving.save(tmp_path / "moving.npz"))
+    np.testing.assert_array_equal(back.at(0).f0, moving.f0[0])
+
+
 def test_mechanisms_refuse_second_order():
     """A single model of a mechanism at a moving state has no M, C_damp, K, Bu."""
     scene = pinlin.Scene.load(URDF_DIR / "four_bar.toml")

@@ -320,8 +320,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'y'),
     'at_rest_mechanism_moving': (
         'pinlin/trajectory_model.py',
-        'moving = bool(v.any() or a.any()) or (self.lam is not None and not rest)',
-        'moving = bool(v.any() or a.any()) or (self.lam is not None)',
+        'if model.lam is not None and not model.info.get("at_rest"):',
+        'if model.lam is not None:',
         "a mechanism's schedule point at rest comes back as a moving (non-equilibrium) model"),
     'point_sizes_a_unchecked': (
         'pinlin/model_checks.py',
@@ -530,6 +530,12 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         'pinlin/cli_motion.py', '        model = model.closed_loop(gain[0])',
         '        model = model.closed_loop(-gain[0])',
         "pinlin response --feedback closes the loop with the gain's sign flipped"),
+    'trajectory_second_order_unchecked': (
+        'pinlin/trajectory_model.py', "        _check_second_order_points(self)\n", "",
+        "a trajectory file's M, C_damp, K, Bu load without being checked against A and B"),
+    'trajectory_rest_drift_kept': (
+        'pinlin/trajectory_model.py', "        _check_rest_drift(self)\n", "",
+        "a trajectory file's drift at a point at rest loads (and at(k) drops it)"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
