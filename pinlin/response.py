@@ -48,9 +48,12 @@ sampled at ``t`` and an impulse becomes u[0] = amplitude / dt (one sample of tha
 
 Input-derivative terms (E, graph models): handled by the standard form (Rowell eqs. 90-93),
 xs = x - E u, xs' = f0 + A xs + (B + A E) u, y = C xs + (D + C E) u + F u'; the reported x is
-xs + E u with u at the sample (after the jump, for held samples). F u' needs the input's
-derivative: given for signals (exact), refused for samples, whose derivative is a train of
-impulses.
+xs + E u with u at the sample (after the jump, for held samples). A signal starts at t[0]
+from zero input and x0 is the state just before it, as for an impulse: its jump u(t0+)
+enters through E, x[0] = x0 + E u(t0+) (a step from rest is the step response of H(s) / s).
+Held samples have no value before t[0]: x0 is the state at t[0], their first sample applied
+(x[0] = x0). F u' needs the input's derivative: given for signals (exact), refused for
+samples, whose derivative is a train of impulses.
 """
 
 from __future__ import annotations
@@ -136,7 +139,9 @@ def response(model: LinearModel, t: np.ndarray | Sequence[float],
     Args:
         model: A :class:`~pinlin.LinearModel` (continuous or discrete).
         t: Increasing sample times [s], N >= 1; x[0] is the state at t[0].
-        x0: Initial state deviation (n), default zeros ([rad or m; rad/s or m/s]).
+        x0: Initial state deviation (n), default zeros ([rad or m; rad/s or m/s]): x[0]
+            itself, but for a Signal's jump through B (impulse) or E (module docstring), which
+            acts just after x0.
         u: None, a :class:`~pinlin.signals.Signal`, samples (N, m), or a callable u(t) -> (m,)
             (see the module docstring; an exception the callable raises reaches the caller
             unchanged; what it returns must be m finite real numbers).
@@ -182,9 +187,14 @@ def response(model: LinearModel, t: np.ndarray | Sequence[float],
     # The drift is the same in the standard form, xs' = f0 + A xs + (B + A E) u (which
     # LinearModel.standard_form does not carry).
     f0 = np.zeros(n) if model.f0 is None else model.f0
-    xs0 = x0 - E @ U[0] + std.B @ impulse
+    # A signal starts at t[0] from zero input, x0 the state just before it: its jump u(t0+)
+    # passes through E (x[0] = x0 + E u(t0+)) as an impulse passes through B. Held samples
+    # have no value before t[0]: x0 is the state at t[0], their first sample applied.
+    xs0 = x0 + std.B @ impulse if signal is not None else x0 - E @ U[0]
     if has_E:
-        notes.append("input-derivative terms E by the standard form xs = x - E u")
+        notes.append("input-derivative terms E by the standard form xs = x - E u" + (
+            "; the signal's jump at t[0] through E: x[0] = x0 + E u(t0+)"
+            if signal is not None and np.any(E @ U[0]) else ""))
     if np.any(impulse):
         notes.append("impulse at t[0]: x[0] is the state just after it, x0 + B a")
     if signal is None and u is not None:

@@ -19,6 +19,7 @@ import scipy.linalg as sla
 from conftest import REPO, URDF_DIR
 from scipy.integrate import solve_ivp
 from scipy.optimize import linear_sum_assignment
+from scipy.signal import lsim
 
 import pinlin
 from pinlin.graph import Graph
@@ -364,6 +365,32 @@ def test_input_derivative_terms_by_the_standard_form():
         assert _rel(res.x, ref) <= 1e-9
     with pytest.raises(pinlin.ModelError, match="F u'"):
         pinlin.response(model, t, [0.1], np.ones(len(t)))
+
+
+def test_a_step_through_e_starts_from_the_state_before_it():
+    """Two springs in series driven by a force source (E = [0, 1/3]): a step switched on at
+    t0 jumps the spring force by E u through the E u' impulse, as an impulse jumps x by B a.
+    From rest (x0 = 0 before the step) the response is the step response of the transfer
+    function: scipy's lsim of the standard form xs' = A xs + (B + A E) u from xs = 0, with
+    x = xs + E u, y = C xs + (D + C E) u. The response had started from x(t0+) = x0 instead,
+    leaving v:B1 at 0 throughout (a different initial state, xs = -E u)."""
+    model = Graph.load(REPO / "validation" / "graphs" / "two_springs.toml").linearize()
+    assert np.any(model.E) and not np.any(model.F)
+    std = model.standard_form()
+    t = np.linspace(0.0, 2.0, 41)
+    amplitude = 1.5
+    _, _, xs = lsim((std.A, std.B, std.C, std.D), np.full(len(t), amplitude), t)
+    x_ref = xs + amplitude * model.E[:, 0]
+    y_ref = xs @ std.C.T + amplitude * std.D[:, 0]
+    for method in ("modal", "exact"):
+        res = pinlin.response(model, t, np.zeros(2), pinlin.step(amplitude), method=method)
+        # lsim's own matrix exponential per step (rounding ~1e-15 of the state); 1e-12.
+        np.testing.assert_allclose(res.x, x_ref, rtol=0, atol=1e-12 * np.abs(x_ref).max())
+        np.testing.assert_allclose(res.y, y_ref, rtol=0, atol=1e-12 * np.abs(y_ref).max())
+        assert res.x[0] == pytest.approx(amplitude * model.E[:, 0], abs=1e-15)
+    # Held samples have no value before t[0]: x[0] is x0, their first sample applied.
+    held = pinlin.response(model, t, np.zeros(2), np.full(len(t), amplitude))
+    np.testing.assert_array_equal(held.x[0], np.zeros(2))
 
 
 def test_discrete_model_steps_its_difference_equation():

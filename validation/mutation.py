@@ -536,6 +536,11 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     'trajectory_rest_drift_kept': (
         'pinlin/trajectory_model.py', "        _check_rest_drift(self)\n", "",
         "a trajectory file's drift at a point at rest loads (and at(k) drops it)"),
+    'response_signal_jump_through_e_lost': (
+        'pinlin/response.py',
+        "xs0 = x0 + std.B @ impulse if signal is not None else x0 - E @ U[0]",
+        "xs0 = x0 - E @ U[0] + std.B @ impulse",
+        "a signal's step through E (input derivative) starts from the state after it"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
