@@ -41,7 +41,13 @@ from .linearization import _system, operating_point
 from .operating_point import OperatingPoint
 from .scene import COEFFICIENT_LIMIT, POSITION_LIMIT, Scene
 from .simulation_inputs import Inputs
-from .simulation_ode import CHART_LIMIT, Mechanism, OpenChain, continuous_angles
+from .simulation_ode import (
+    CHART_LIMIT,
+    Mechanism,
+    OpenChain,
+    continuous_angles,
+    spring_wraps,
+)
 from .system import System
 
 #: rho * T above this is stiff (rho: fastest decay rate [1/s], T: horizon [s]) ...
@@ -89,7 +95,8 @@ class Simulation:
             was scaled by the robot's length), nfev, njev, nlu, steps (accepted),
             restarts (chart, partition, input), stiffness (rho * T), coordinates, energy
             (what it holds, or why it is None), feedback (none, a gain of shape (nu, n) or a
-            callable), effects, notes.
+            callable), effects, notes, spring_wraps (the notes on springs of continuous
+            joints that passed their wrap, q - rest beyond pi, where their force reverses).
     """
 
     t: np.ndarray
@@ -451,6 +458,8 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
     # A continuous joint's angle as it travelled, in turns (difference wraps it at pi).
     turning = continuous_angles(system)
     X[:, turning] = C[:, turning]
+    wraps = spring_wraps(system, op.q, X, grid)
+    notes = [*notes, *wraps]
     Z = np.hstack([X[:, cols], X[:, nv + cols]])
     drift = np.array([dyn.drift(q, v) for q, v in zip(Q, V, strict=True)]) \
         if isinstance(dyn, Mechanism) else np.zeros((grid.size, 2))
@@ -470,7 +479,7 @@ def simulate(scene: Scene | System | str, t: object, dx0: object = None, u: obje
                             if isinstance(dyn, Mechanism) else
                             "chart (dq, v) about a reference re-centred past "
                             f"{CHART_LIMIT:g} rad" if system.nq != nv else "(dq, v)"),
-            "energy": energy_note, "notes": notes,
+            "energy": energy_note, "notes": notes, "spring_wraps": tuple(wraps),
             "feedback": inputs.feedback_note,
             "effects": constrained_effects(system)}
     return Simulation(

@@ -111,6 +111,29 @@ def continuous_angles(system: System) -> np.ndarray:
                     dtype=int)
 
 
+def spring_wraps(system: System, q0: np.ndarray, X: np.ndarray, t: np.ndarray) -> list[str]:
+    """Notes on the springs of continuous joints whose deflection q - rest passed +-pi in the
+    simulated states ``X`` (angles from ``q0`` in turns, :func:`continuous_angles`) at times
+    ``t`` [s]: such a spring acts on q - rest wrapped to (-pi, pi] (the joint's configuration
+    has no winding count, :func:`pinlin.operating_point`), so its force reverses there."""
+    notes = []
+    for name, spring in (system.scene.effects.springs or {}).items():
+        j = system.joints.get(name)
+        if j is None or not (j.nv == 1 and j.nq == 2):
+            continue
+        c, s = q0[j.idx_q], q0[j.idx_q + 1]
+        gap = np.arctan2(s, c) - spring.rest
+        deflection = np.arctan2(np.sin(gap), np.cos(gap)) + X[:, j.idx_v]
+        beyond = np.flatnonzero(np.abs(deflection) > np.pi)
+        if beyond.size:
+            k = int(beyond[0])
+            notes.append(f"the spring on continuous joint '{name}' passed its wrap: q - rest "
+                         f"= {deflection[k]:.4g} rad at t = {t[k]:.4g} s, beyond pi, where "
+                         "the spring (acting on q - rest wrapped to (-pi, pi]) reverses its "
+                         "force; make the joint revolute for a wound spring")
+    return notes
+
+
 class OpenChain:
     """s = (dq, v) in the chart about q_ref (module docstring)."""
 

@@ -73,6 +73,7 @@ class Case:
         reference_drift: max_t max_j w_j |z_nl(t; 0)|, the unperturbed motion (0 at
             equilibrium).
         t, nonlinear, linear: Time [s] and Dnl, Dlin (N, 2n) at the radius (None if none ran).
+        notes: What the simulations met (a spring of a continuous joint past its wrap).
     """
 
     label: str
@@ -99,6 +100,7 @@ class Case:
     t: np.ndarray | None = None
     nonlinear: np.ndarray | None = None
     linear: np.ndarray | None = None
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,11 +179,12 @@ def notes(cases: list[Case], drift: float, tol: float, first_order: float) -> li
         out.append(f"not an equilibrium: max |f0| = {drift:.3g} (x' = f0 + A x); errors "
                    "compare the deviations from the unperturbed motions, and a model made away "
                    "from an equilibrium leaves errors of first order in the amplitude")
-    first = [c.label for c in cases if c.slope < first_order]
+    first = [c.label for c in cases if c.slope < first_order and not c.notes]
     if first and drift == 0.0:
         out.append(f"first-order error at an equilibrium ({', '.join(first)}): the linear "
                    "model does not match the simulated dynamics")
     for c in cases:
+        out += [f"{c.label}: {note}" for note in c.notes]
         failed = [f for f in c.failures if f]
         if failed:
             out.append(f"{c.label}: {len(failed)} simulation(s) failed, counted beyond "

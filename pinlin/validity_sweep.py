@@ -46,6 +46,8 @@ class Sweep:
         self.noise_atol = noise_atol   # the atol of the noise floor (noise_floor), in a's unit
         self.n, self.names = model.n_states // 2, model.state_names
         self.w = np.concatenate([w, w])   # the weights of positions and velocities
+        self.wraps: dict[float, str] = {}   # amplitude -> the first spring wrap it met
+        self.last_wraps: tuple[str, ...] = ()
         ref_lin = response(model, t, method="exact").x
         self.unit_lin = response(model, t, x0=d, method="exact").x - ref_lin
         self.reference = self._simulate(np.zeros_like(d))
@@ -58,6 +60,7 @@ class Sweep:
         if sim.independent_names != self.names:
             raise ModelError(f"the simulated coordinates {sim.independent_names} are not the "
                              f"linear model's {self.names}")
+        self.last_wraps = sim.info.get("spring_wraps", ())
         return np.asarray(sim.z)
 
     def measure(self, a: float) -> float:
@@ -66,6 +69,8 @@ class Sweep:
         self.count += 1
         try:
             dnl = self._simulate(a * self.d) - self.reference
+            if self.last_wraps:
+                self.wraps[a] = self.last_wraps[0]
         except PinlinError as exc:
             self.rows[a] = (math.inf, math.inf, math.inf, str(exc))
             return math.inf
@@ -121,10 +126,19 @@ class Sweep:
             error_at_radius=self.rows[radius][0],
             excursions=read_only(radius * np.abs(self.d[:n])),
             peak=math.nan if dnl is None else float((np.abs(dnl[:, :n]) * self.w[:n]).max()),
-            slope=p, diagnosis=diagnosis,
+            slope=p, diagnosis=diagnosis, notes=_wrap_notes(self.wraps),
             reference_drift=float((np.abs(self.reference) * self.w).max()),
             t=read_only(self.t.copy()), nonlinear=None if dnl is None else read_only(dnl),
             linear=None if dnl is None else read_only(radius * self.unit_lin))
+
+
+def _wrap_notes(wraps: dict[float, str]) -> tuple[str, ...]:
+    """The case's note on the springs of continuous joints that its simulations wound past
+    their wrap (from the smallest such amplitude on: the error there is the wrap's)."""
+    if not wraps:
+        return ()
+    a = min(wraps)
+    return (f"from a = {a:.4g} on, {wraps[a]}",)
 
 
 def radius_index(a: np.ndarray, e: np.ndarray, tol: float) -> tuple[int, Bound]:
@@ -144,6 +158,13 @@ def order(a: np.ndarray, e: np.ndarray, rtol: float, atol: float) -> tuple[float
     saturated = ok & (e > SATURATION)
     if (ok & ~saturated).sum() >= 2:
         ok &= ~saturated
+    elif saturated.any() and np.any(~ok[:int(np.argmax(saturated))]):
+        # From the noise straight to parted motions: no power law to fit between.
+        below = a[:int(np.argmax(saturated))][~ok[:int(np.argmax(saturated))]]
+        return math.nan, (f"order unknown: the error is at the integration noise up to "
+                          f"a = {below.max():.3g} and beyond {SATURATION:g} from "
+                          f"a = {a[saturated].min():.3g}: the simulated dynamics change "
+                          "abruptly between (the linear model holds to the noise below)")
     use = ok & (np.cumsum(ok) <= ORDER_POINTS)
     if use.sum() < 2:
         return math.nan, "order unknown: fewer than two errors above the integration noise"

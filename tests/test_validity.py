@@ -401,3 +401,41 @@ def test_a_direction_horizon_ends_at_the_fastest_growth():
     T, period, _ = VM._direction_horizon(ma, horizons, None)
     assert pytest.approx(2.0 / 4.0, rel=1e-12) == T  # e^2 of the mode growing at 4 1/s
     assert period == pytest.approx(math.pi, rel=1e-12)
+
+
+WHEEL = """<?xml version="1.0"?>
+<robot name="wheel">
+  <link name="base"/>
+  <link name="disk"><inertial><mass value="1.0"/>
+    <inertia ixx="1.0" ixy="0" ixz="0" iyy="1.0" iyz="0" izz="1.0"/></inertial></link>
+  <joint name="spin" type="continuous"><parent link="base"/><child link="disk"/>
+    <axis xyz="0 0 1"/></joint>
+</robot>"""
+
+
+def test_a_spring_past_its_wrap_is_named_not_taken_for_a_first_order_error(tmp_path):
+    """A disk (1 kg m^2) on a continuous joint with a 1 N*m/rad spring relaxed at 0, held at
+    q0 = 3 rad: its linear model is exact (lambda = +-1j) until the deflection q - rest
+    passes pi, where pinlin's spring (on the angle wrapped to (-pi, pi]) reverses. From rest
+    at q0 + a the deflection is 3 + a at t = 0: beyond pi for a > pi - 3 = 0.1416. The
+    simulation says so in its notes, and validity's radius lies between the default
+    amplitudes that bracket pi - 3 (0.1 and 0.215), with the wrap named in its notes. The
+    order used to be fitted to the parted motions alone and read "first order: the point is
+    not an equilibrium", which it is."""
+    urdf = tmp_path / "wheel.urdf"
+    urdf.write_text(WHEEL)
+    scene = pinlin.Scene.from_urdf(
+        urdf, name="wheel", base="fixed",
+        effects={"springs": {"spin": {"stiffness": 1.0, "rest": 0.0}}},
+        operating_point={"q": {"spin": 3.0}, "solve": "inputs"})
+    t = np.linspace(0.0, 1.0, 5)
+    assert pinlin.simulate(scene, t, dx0=[0.1, 0.0]).info["spring_wraps"] == ()
+    wraps = pinlin.simulate(scene, t, dx0=[0.2, 0.0]).info["spring_wraps"]
+    assert len(wraps) == 1 and "continuous joint 'spin' passed its wrap: q - rest = 3.2 rad " \
+                               "at t = 0 s" in wraps[0]
+    result = pinlin.validity(scene, periods=1)
+    case = result.cases[0]
+    assert 0.1 <= case.radius <= np.pi - 3.0
+    assert math.isnan(case.slope) and "order unknown" in case.diagnosis
+    assert any("mode 1: from a = " in n and "passed its wrap" in n for n in result.notes)
+    assert not any("first-order error" in n for n in result.notes)

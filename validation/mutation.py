@@ -541,6 +541,14 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "xs0 = x0 + std.B @ impulse if signal is not None else x0 - E @ U[0]",
         "xs0 = x0 - E @ U[0] + std.B @ impulse",
         "a signal's step through E (input derivative) starts from the state after it"),
+    'spring_wrap_unsaid': (
+        'pinlin/simulation_ode.py', "        if beyond.size:\n", "        if False:\n",
+        "simulate says nothing when a continuous joint's spring passes its wrap"),
+    'validity_order_fits_parted_motions': (
+        'pinlin/validity_sweep.py',
+        "    elif saturated.any() and np.any(~ok[:int(np.argmax(saturated))]):",
+        "    elif False:",
+        "validity fits an order to errors that jump from the noise to parted motions"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
