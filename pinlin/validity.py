@@ -131,25 +131,26 @@ def _positive(name: str, value: object, unit: str, upper: float = math.inf) -> f
     return float(value)
 
 
-def _check_integration(rtol: object, atol: object, tolerance: float, smallest: float,
-                       given: str = "") -> None:
+def _check_integration(rtol: float, atol: float, tolerance: float, smallest: float,
+                       scale: float) -> None:
     """Refuse solver tolerances whose noise (:func:`pinlin.validity_sweep.noise_floor`:
-    NOISE_RTOL rtol + NOISE_ATOL atol / a) reaches the tolerance at the smallest amplitude:
-    every error measured would be noise, and the radius a verdict on the solver rather than
-    the model (``given``: how the atol, in the amplitudes' unit, came from the one given)."""
-    rtol = _positive("rtol", rtol, "(relative, of the nonlinear simulation)")
-    atol = _positive("atol", atol, "(absolute, of the nonlinear simulation)")
+    NOISE_RTOL rtol + NOISE_ATOL atol scale / a) reaches the tolerance at the smallest
+    amplitude: every error measured would be noise, and the radius a verdict on the solver
+    rather than the model (``scale``: the largest weight w_j, which turns the atol given in
+    rad and m into the amplitudes' unit; the advice is in the atol's own)."""
     if NOISE_RTOL * rtol >= tolerance:
         raise ArgumentError("rtol", f"the tolerance {tolerance:g} is within the integration "
                                     f"noise of rtol = {rtol:g} (~{NOISE_RTOL:g} rtol): use a "
                                     f"tolerance above {NOISE_RTOL * rtol:g} or rtol <= "
                                     f"{tolerance / NOISE_RTOL / 10:.1g}")
-    if NOISE_ATOL * atol / smallest >= tolerance:
+    if NOISE_ATOL * atol * scale / smallest >= tolerance:
+        per = "" if scale == 1.0 else f" ({atol * scale:.3g} per L, L = {1 / scale:.3g} m)"
         raise ArgumentError("atol", f"at the smallest amplitude {smallest:g} the integration "
-                                    f"noise of atol = {atol:g}{given} (~{NOISE_ATOL:g} atol / "
+                                    f"noise of atol = {atol:g}{per} (~{NOISE_ATOL:g} atol / "
                                     f"amplitude) reaches the tolerance {tolerance:g}: use "
-                                    f"amplitudes >= {NOISE_ATOL * atol / tolerance * 10:.1g} "
-                                    f"or atol <= {tolerance * smallest / NOISE_ATOL / 10:.1g}")
+                                    "amplitudes >= "
+                                    f"{NOISE_ATOL * atol * scale / tolerance * 10:.1g} or atol "
+                                    f"<= {tolerance * smallest / NOISE_ATOL / 10 / scale:.1g}")
 
 
 def _amplitudes(amplitudes: object) -> tuple[np.ndarray, bool]:
@@ -170,8 +171,7 @@ def _amplitudes(amplitudes: object) -> tuple[np.ndarray, bool]:
     ok = np.isfinite(arr) & (arr > 0.0) & (arr <= POSITION_LIMIT)
     if not ok.all():
         raise ArgumentError("amplitudes", f"expected finite amplitudes > 0 and <= "
-                                          f"{POSITION_LIMIT:g} {UNIT} (as a simulation's "
-                                          f"initial deviation), got {arr[~ok][:3]}")
+                                          f"{POSITION_LIMIT:g} {UNIT}, got {arr[~ok][:3]}")
     return np.unique(arr), False
 
 
@@ -356,18 +356,20 @@ def validity(scene: object, amplitudes: Sequence[float] | np.ndarray | None = No
         raise ArgumentError("periods", f"expected at most {MAX_CYCLES:g} periods (each takes "
                                        f"the integrator ~10 steps), got {periods:g}")
     tolerance = _positive("tolerance", tolerance, "(relative error)", upper=1.0)
-    _check_integration(rtol, ATOL if atol is None else atol, tolerance, float(amps.min()))
+    rtol = _positive("rtol", rtol, "(relative, of the nonlinear simulation)")
+    if atol is not None:
+        atol = _positive("atol", atol, "(absolute, of the nonlinear simulation)")
     time_constants = _positive("time_constants", time_constants, "of time constants")
     horizon = None if horizon is None else _positive("horizon", horizon, "[s]")
     model = linearize(system, q=q, v=v)
     length, w = _unit_weights(system, model)
     units = _units(length)
     # The noise floor's atol in the amplitudes' unit: simulate's default is ATOL per rad and
-    # per L; an atol given in rad and m is atol / L per L.
-    noise_atol = ATOL if atol is None else atol * max(1.0, 1.0 / (length or 1.0))
-    if atol is not None and noise_atol != atol:
-        _check_integration(rtol, noise_atol, tolerance, float(amps.min()),
-                           f" per L ({atol:g} m with L = {length:.3g} m)")
+    # per L; an atol given in rad and m is atol w_j in it, at most atol max(w).
+    scale = 1.0 if atol is None else float(w.max(initial=1.0))
+    noise_atol = ATOL if atol is None else atol * scale
+    _check_integration(rtol, ATOL if atol is None else atol, tolerance, float(amps.min()),
+                       scale)
     gain = None
     if feedback is not None:
         if callable(feedback):

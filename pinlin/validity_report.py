@@ -66,8 +66,8 @@ class Case:
         bound: :class:`Bound`.
         error_at_radius: e at ``radius``.
         excursions: (n,) |joint excursions| at t = 0 at the radius [rad or m], radius |d_q|.
-        peak: max_t max_j w_j |Dnl_qj| at the radius, in ``unit`` (grows past radius when
-            unstable).
+        peak: max_t max_j w_j |Dnl_qj| at the radius, in rad or L (the positions' unit, for a
+            velocity direction too; grows past the radius when unstable).
         slope: Order p of the error (:mod:`pinlin.validity`); NaN with fewer than two points.
         diagnosis: What p says.
         reference_drift: max_t max_j w_j |z_nl(t; 0)|, the unperturbed motion (0 at
@@ -299,7 +299,7 @@ def _histories(result: Validity) -> object:
         w = np.ones(2 * n) if result.weights is None else np.tile(result.weights, 2)
         row[0].plot(c.t, c.nonlinear[:, j], "-", lw=1.4, label="nonlinear (simulate)")
         row[0].plot(c.t, c.linear[:, j], "--", lw=1.2, label="linear (exact)")
-        row[0].set_ylabel(f"d{name}")
+        row[0].set_ylabel(f"d{name} [{'rad' if w[j] == 1.0 else 'm'}]")
         row[0].set_title(f"{c.label} ({c.kind}): a = {c.radius:.3g} {c.unit}, "
                          f"e = {_percent(c.error_at_radius)}", fontsize=9)
         row[0].grid(True, alpha=0.3)

@@ -124,16 +124,20 @@ def test_ci_runs_the_readme_test_command():
     assert commands[-1] == BLOCKS[1].code.strip()
 
 
-def test_the_mutation_figures_are_the_committed_reports():
-    """The README quotes the last full mutation run: its score and count are the committed
-    report's (they had stayed at an older run's 91 of 91 through two later runs)."""
+def test_the_mutation_figures_are_the_script_and_its_committed_report():
+    """The README says how many bugs validation/mutation.py plants (the script's list) and
+    quotes the last full run's score from the committed report (both had stayed at an older
+    run's 91 of 91 through two later runs)."""
     readme = " ".join(README.read_text(encoding="utf-8").split())
     report = (REPO / "validation" / "reports" / "mutation.md").read_text(encoding="utf-8")
     score = re.search(r"\*\*Score: (\d+) of (\d+) planted bugs caught\.\*\*", report)
     assert score, "validation/reports/mutation.md: no score line"
     caught, planted = score.groups()
-    assert f"**{caught} of {planted} caught**" in readme
-    assert f"plants {planted} plausible bugs" in readme
+    assert f"The last full run: **{caught} of {planted} caught**" in readme
+    script = (REPO / "validation" / "mutation.py").read_text(encoding="utf-8")
+    listed = script[script.index("MUTATIONS: dict"):script.index("\n}\n")]
+    count = len(re.findall(r"^    ['\"]\w+['\"]: \($", listed, flags=re.M))
+    assert count > 100 and f"plants {count} plausible bugs" in readme
 
 
 # --- Python -----------------------------------------------------------------------------------

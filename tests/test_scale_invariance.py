@@ -384,8 +384,10 @@ def test_validity_finds_the_same_radius_at_any_size(tmp_path, s, k):
     0.0022 m at 1 m). Scaled, the problem is the original's times powers of 2 (module
     docstring) and the simulations run alike; the integration noise the tolerance leaves,
     NOISE_RTOL rtol = 1e-7 of the error e ~ 1e-2, moves the radius by ~1e-5 relative at
-    order p ~ 2 (measured 2e-9): 1e-5. The order is fitted where e is smallest, ~1e-6 for
-    the cart-pole's p = 3, so the same noise moves it by ~1e-4 (measured 9e-5): 1e-3."""
+    order p ~ 2 (measured 2e-9 on the slider-crank, 2.5e-8 on the cart-pole): 1e-5. The
+    order is fitted where e is smallest, ~1e-6 for the cart-pole's p = 3, so the same noise
+    moves it by ~1e-4 (measured 9e-5): 1e-3. The initial states are eigenvectors of A scaled
+    exactly by powers of 2: equal to rounding (measured: bit for bit), 1e-12."""
     spec = dataclasses.replace(
         scaled_scene("slider_crank", 1.0, 1.0, tmp_path).operating_point,
         independent=("slider",))
@@ -408,5 +410,22 @@ def test_validity_finds_the_same_radius_at_any_size(tmp_path, s, k):
             n = len(res.weights)
             time = np.repeat([1.0, s ** 0.5], n)
             np.testing.assert_allclose(c.direction * np.tile(res.weights, 2) * time,
-                                       c_ref.direction * np.tile(ref.weights, 2), rtol=1e-6,
+                                       c_ref.direction * np.tile(ref.weights, 2), rtol=0,
                                        atol=1e-12)
+
+
+def test_validity_takes_a_given_atol_in_metres_and_advises_in_metres(tmp_path):
+    """A given atol is absolute in rad and m; on the 61 um slider-crank parametrized by its
+    slider (L = 9.4e-6 m) 1e-9 m is 1.1e-4 per L, whose noise (1e3 atol / a) reaches the 1 %
+    tolerance at a = 1e-3: refused, with advice in metres that is then accepted (the advice
+    had been given per L: 1e-9, the value just refused)."""
+    crank = scaled_scene("slider_crank", 2.0 ** -14, 2.0 ** -8, tmp_path)
+    scene = dataclasses.replace(crank, operating_point=dataclasses.replace(
+        crank.operating_point, independent=("slider",)))
+    with pytest.raises(pinlin.ArgumentError, match=r"atol = 1e-09 \(0.000107 per L, L = "
+                                                   r"9.39e-06 m\).*or atol <= (\S+)") as exc:
+        pinlin.validity(scene, [1e-3, 2e-3], periods=1, atol=1e-9)
+    advised = float(exc.value.args[0].rsplit("atol <= ", 1)[1])
+    assert advised == pytest.approx(1e-3 * 0.01 / 1e3 / 10 * 9.39e-6, rel=0.1)
+    result = pinlin.validity(scene, [1e-3, 2e-3], periods=1, atol=advised)
+    assert result.length == pytest.approx(9.39e-6, rel=1e-3)

@@ -284,8 +284,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "a mechanism's simulation starts from dz' alone, forgetting v0"),
     'validity_atol_check_without_amplitude': (
         'pinlin/validity.py',
-        'if NOISE_ATOL * atol / smallest >= tolerance:',
-        'if NOISE_ATOL * atol >= tolerance:',
+        'if NOISE_ATOL * atol * scale / smallest >= tolerance:',
+        'if NOISE_ATOL * atol * scale >= tolerance:',
         "validity's atol noise check ignores the smallest amplitude"),
     'direction_horizon_longest_unstable': (
         'pinlin/validity.py',

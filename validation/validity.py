@@ -112,7 +112,10 @@ def _report(name: str, result: pinlin.Validity, what: str) -> str:
              f"{platform.machine()}, pinlin {pinlin.__version__}).", "",
              "Relative error e = max over t and coordinates of |Dnl - Dlin| / max |Dlin|, for "
              "the positions and the velocities separately, the larger of the two (Dnl, Dlin: "
-             "the deviations of the perturbed motions from the unperturbed ones). The radius is "
+             "the deviations of the perturbed motions from the unperturbed ones; "
+             + ("angles in rad and lengths in units of the robot's characteristic length "
+                f"L = {result.length:.4g} m, as the amplitudes" if result.length is not None
+                else "angles in rad") + "). The radius is "
              f"the largest amplitude (largest joint excursion at t = 0) with e <= "
              f"{100 * TOLERANCE:g}%; the order p is that of the error in the state's units, "
              "e ~ a^(p-1) (2: quadratic terms; 3: an odd nonlinearity; 1: not an "
