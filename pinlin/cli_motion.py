@@ -220,6 +220,21 @@ def _loop_line(path: str, model) -> str:
             f"{len(model.state_names)} states) from {path}")
 
 
+#: --allow-non-equilibrium of simulate, response and validity.
+ALLOW_HELP = ("take the scene's point even if its inputs cannot hold q0 at rest (the motion "
+              "then drifts from it: x' = f0 + A x + B u)")
+
+
+def allowing(scene, allow: bool):
+    """``scene`` with ``operating_point.allow_non_equilibrium`` set where ``allow``."""
+    if not allow:
+        return scene
+    import dataclasses
+
+    return dataclasses.replace(scene, operating_point=dataclasses.replace(
+        scene.operating_point, allow_non_equilibrium=True))
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .formulations.constrained import constrained_effects
     from .linearization import linearize
@@ -227,7 +242,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     t = times(args)
     out, plot = check_history_out(args.out), check_plot(args.plot)
-    scene = scene_of(args.target)
+    scene = allowing(scene_of(args.target), args.allow_non_equilibrium)
     model = linearize(scene)
     x0 = initial_state(model, args.x0)
     gain = _gain(args.feedback, model)
@@ -295,7 +310,7 @@ def _cmd_response(args: argparse.Namespace) -> int:
         raise ArgumentError("--nonlinear", "compares free responses (--x0 only); inputs "
                                            "are not simulated nonlinearly from the CLI")
     out, plot = check_history_out(args.out), check_plot(args.plot)
-    scene = scene_of(args.target)
+    scene = allowing(scene_of(args.target), args.allow_non_equilibrium)
     model = linearize(scene)
     x0 = initial_state(model, args.x0)
     u = _signals(args, model)
@@ -348,7 +363,7 @@ def _cmd_validity(args: argparse.Namespace) -> int:
     folder = None
     if args.out_dir is not None:
         folder = check_folder_target(folder_name(args.out_dir, "--out-dir"), "--out-dir")
-    scene = scene_of(args.target)
+    scene = allowing(scene_of(args.target), args.allow_non_equilibrium)
     if folder is not None and folder.is_dir():    # a file there is refused before the run
         for path in plot_paths(folder, scene.name):
             check_file_target(path)
@@ -433,6 +448,7 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     sim.add_argument("--atol", type=float, default=None,
                      help="absolute tolerance in the state's units (default 1e-12 per rad or "
                           "rad/s, 1e-12 L per m or m/s, L the robot's characteristic length)")
+    sim.add_argument("--allow-non-equilibrium", action="store_true", help=ALLOW_HELP)
     sim.set_defaults(func=_cmd_simulate)
     res = sub.add_parser("response", help="the linear model's response (chapter 9.3) to an "
                                           "initial state and inputs")
@@ -448,6 +464,7 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     res.add_argument("--nonlinear", action="store_true",
                      help="also simulate the nonlinear dynamics from the same state and "
                           "report the difference")
+    res.add_argument("--allow-non-equilibrium", action="store_true", help=ALLOW_HELP)
     res.set_defaults(func=_cmd_response)
     val = sub.add_parser("validity", help="how large a motion the linear model stays "
                                           "accurate for, per mode")
@@ -465,5 +482,6 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     val.add_argument("--out-dir", default=None, help="write the plots into this folder")
     val.add_argument("--feedback", metavar="GAIN", type=file_name("--feedback"),
                      help=feedback_help + "; the closed loop's modes are compared")
+    val.add_argument("--allow-non-equilibrium", action="store_true", help=ALLOW_HELP)
     val.set_defaults(func=_cmd_validity)
     return [tra, sim, res, val]

@@ -63,6 +63,20 @@ def test_non_equilibrium_refusal_names_the_flag(capfd, formulation):
     assert "(--allow-non-equilibrium on the command line)" in err
 
 
+@pytest.mark.parametrize("command", [["simulate", "--t-end", "0.01"],
+                                     ["response", "--t-end", "0.01"],
+                                     ["validity", "--amplitudes", "0.01", "--modes", "7",
+                                      "--periods", "0.1"]])
+def test_every_command_that_names_the_flag_takes_it(capfd, command):
+    """simulate, response and validity refused a non-equilibrium naming
+    --allow-non-equilibrium, which they did not take (argparse: unrecognized arguments)."""
+    name, *rest = command
+    code, _, err = run(capfd, name, "solo12", *rest)
+    assert code == 2 and "(--allow-non-equilibrium on the command line)" in err
+    code, out, err = run(capfd, name, "solo12", *rest, "--allow-non-equilibrium")
+    assert code == 0 and out, err
+
+
 # ------------------------------------------------------------------------------------------
 # --version
 
