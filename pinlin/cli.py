@@ -28,6 +28,7 @@ from .cli_format import (
     plural,
     print_operating_point,
     scene_of,
+    strict_float,
 )
 from .cli_motion import add_commands
 from .cli_pictures import add_commands as add_picture_commands
@@ -276,17 +277,17 @@ def build_parser() -> argparse.ArgumentParser:
                      help="scene .toml, .urdf, bundled scene name or example-robot-data robot")
     lin.add_argument("--formulation", choices=FORMULATIONS, default="independent")
     lin.add_argument("--derivatives", choices=BACKENDS, default="analytic")
-    lin.add_argument("--step", type=float, default=None,
+    lin.add_argument("--step", type=strict_float, default=None,
                      help="finite-difference step for fd3/fd5, all variables [rad, m, rad/s, "
                           "m/s, N*m, N]; default: per variable, see the README")
     lin.add_argument("--basis", choices=BASES, default=None,
                      help="independent coordinates of a mechanism with loops")
-    lin.add_argument("--alpha", type=float, default=None,
+    lin.add_argument("--alpha", type=strict_float, default=None,
                      help=f"penalty factor (penalty, canonical; default "
                           f"{PENALTY_DEFAULTS['alpha']:g})")
-    lin.add_argument("--mu", type=float, default=None,
+    lin.add_argument("--mu", type=strict_float, default=None,
                      help=f"penalty damping ratio (default {PENALTY_DEFAULTS['mu']:g})")
-    lin.add_argument("--omega", type=float, default=None,
+    lin.add_argument("--omega", type=strict_float, default=None,
                      help=f"penalty natural frequency [rad/s] (default "
                           f"{PENALTY_DEFAULTS['omega']:g})")
     lin.add_argument("--method", choices=METHODS, default="auto", help="eigensolver")
@@ -327,7 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("target", metavar="SCENE_OR_ROBOT")
     exp.add_argument("-o", "--output", required=True, metavar="FILE.xml",
                      type=file_name("--output"))
-    exp.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default 1e-3)")
+    exp.add_argument("--dt", type=strict_float, default=1e-3, help="time step [s] (default 1e-3)")
     exp.set_defaults(func=_cmd_export_mjcf)
     gra = sub.add_parser("graph", help="state equations of a linear graph (Rowell)")
     gra.add_argument("file", metavar="FILE.toml")

@@ -32,6 +32,18 @@ def options_named(options: dict[str, str]) -> Iterator[None]:
         raise ArgumentError(options[exc.argument], exc.reason) from None
 
 
+def strict_float(text: str) -> float:
+    """A number given on the command line: what ``float`` reads, but for the underscores
+    and non-ASCII digits it also takes ("1_0" is 10 and "\u0663" is 3 to ``float``), which no
+    one means as a number here (a ValueError, as ``float``'s)."""
+    if "_" in text or not text.isascii():
+        raise ValueError(f"could not convert string to float: {text!r}")
+    return float(text)
+
+
+strict_float.__name__ = "float"   # argparse's message: "invalid float value: '1_0'"
+
+
 def scene_of(target: str) -> Scene:
     """:meth:`pinlin.Scene.resolve` of the command line's SCENE_OR_ROBOT, its errors naming
     that argument (the library's name for it is ``target``)."""

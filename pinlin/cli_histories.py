@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli_format import strict_float
 from .exceptions import ArgumentError, ModelFileError
 from .files import all_or_nothing
 
@@ -59,7 +60,7 @@ def assignments(values: list[str] | None, names: tuple[str, ...], option: str,
 
 def number(text: str, option: str) -> float:
     try:
-        value = float(text)
+        value = strict_float(text)
     except ValueError:
         raise ArgumentError(option, f"expected a number, got {text!r}") from None
     if not np.isfinite(value):

@@ -19,6 +19,7 @@ from .cli_format import (
     options_named,
     plural,
     scene_of,
+    strict_float,
 )
 from .cli_histories import (
     assignments,
@@ -405,9 +406,9 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     tra.add_argument("--dask", metavar="ADDRESS", default=None,
                      help="run on a Dask cluster, e.g. tcp://scheduler:8786 (extra 'dask')")
     tra.add_argument("--derivatives", choices=backends, default="analytic")
-    tra.add_argument("--step", type=float, default=None,
+    tra.add_argument("--step", type=strict_float, default=None,
                      help="finite-difference step for fd3/fd5 [rad, m, rad/s, m/s, N*m, N]")
-    tra.add_argument("--dt", type=float, default=None,
+    tra.add_argument("--dt", type=strict_float, default=None,
                      help="discretize the models with this sample time [s]")
     tra.add_argument("--discretization", choices=("zoh", "euler"), default=None,
                      help="with --dt: zero-order hold (default) or semi-implicit Euler")
@@ -426,9 +427,10 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
 
     def timed(p: argparse.ArgumentParser) -> None:
         p.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
-        p.add_argument("--t-end", type=float, required=True, metavar="T",
+        p.add_argument("--t-end", type=strict_float, required=True, metavar="T",
                        help="duration [s]")
-        p.add_argument("--dt", type=float, default=0.01, help="output step [s] (default 0.01)")
+        p.add_argument("--dt", type=strict_float, default=0.01,
+                       help="output step [s] (default 0.01)")
         p.add_argument("--x0", nargs="+", action="extend", metavar="NAME=VALUE",
                        help="initial deviation, e.g. q:elbow=0.1 v:shoulder=0.5 [rad, m, "
                             "rad/s, m/s] (the linear model's state names)")
@@ -444,8 +446,8 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     timed(sim)
     sim.add_argument("--method", default=None, help="solve_ivp method (default: DOP853, or "
                                                     "Radau for stiff scenes)")
-    sim.add_argument("--rtol", type=float, default=1e-10, help="relative tolerance")
-    sim.add_argument("--atol", type=float, default=None,
+    sim.add_argument("--rtol", type=strict_float, default=1e-10, help="relative tolerance")
+    sim.add_argument("--atol", type=strict_float, default=None,
                      help="absolute tolerance in the state's units (default 1e-12 per rad or "
                           "rad/s, 1e-12 L per m or m/s, L the robot's characteristic length)")
     sim.add_argument("--allow-non-equilibrium", action="store_true", help=ALLOW_HELP)
@@ -469,11 +471,12 @@ def add_commands(sub, backends: tuple[str, ...]) -> list[argparse.ArgumentParser
     val = sub.add_parser("validity", help="how large a motion the linear model stays "
                                           "accurate for, per mode")
     val.add_argument("target", metavar="SCENE_OR_ROBOT", help=scene_help)
-    val.add_argument("--amplitudes", nargs="+", action="extend", type=float, default=None,
+    val.add_argument("--amplitudes", nargs="+", action="extend", type=strict_float, default=None,
                      help="initial amplitudes [rad, or L for a length: the robot's "
                           "characteristic length, printed] (default: a sweep)")
-    val.add_argument("--periods", type=float, default=5, help="horizon in periods (default 5)")
-    val.add_argument("--tolerance", type=float, default=0.01,
+    val.add_argument("--periods", type=strict_float, default=5,
+                     help="horizon in periods (default 5)")
+    val.add_argument("--tolerance", type=strict_float, default=0.01,
                      help="relative error that limits the radius (default 0.01)")
     val.add_argument("--modes", nargs="+", action="extend", type=int, default=None,
                      help="mode indices as in the mode table (default: every non-rigid one)")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from .cli_format import file_name, mode_rows, plural, scene_of
+from .cli_format import file_name, mode_rows, plural, scene_of, strict_float
 from .exceptions import ArgumentError
 
 
@@ -88,7 +88,7 @@ def add_commands(sub) -> list[argparse.ArgumentParser]:
     mod.add_argument("--mode", type=int, nargs="+", action="extend", metavar="K",
                      help="rows of the mode table to draw (1 = first row; default: the first "
                           "four that are not rigid)")
-    mod.add_argument("--amplitude", type=float, default=None,
+    mod.add_argument("--amplitude", type=strict_float, default=None,
                      help="excursion of each shape's largest coordinate [rad or m] (default: "
                           "a readable one per mode)")
     mod.add_argument("--allow-non-equilibrium", action="store_true",

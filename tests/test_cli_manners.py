@@ -78,6 +78,25 @@ def test_every_command_that_names_the_flag_takes_it(capfd, command):
 
 
 # ------------------------------------------------------------------------------------------
+# Numbers on the command line
+
+@pytest.mark.parametrize("argv, option", [
+    (["response", "pendulum", "--t-end", "0.02", "--x0", "q:hinge=1_0"], "'--x0'"),
+    (["response", "pendulum", "--t-end", "1_0"], "--t-end"),
+    (["response", "pendulum", "--t-end", "0.02", "--step", "u:hinge=\u0663"], "'--step'"),
+    (["validity", "pendulum", "--amplitudes", "0.0_1"], "--amplitudes"),
+    (["linearize", "ur5", "--derivatives", "fd3", "--step", "1_0e-6"], "--step"),
+])
+def test_numbers_python_reads_but_no_one_writes_are_refused(capfd, argv, option):
+    """float() reads "1_0" as 10 and "\u0663" (Arabic-Indic three) as 3: --x0 q:hinge=1_0
+    started the pendulum 10 rad away. Refused, as in the CSV files."""
+    code, out, err = run(capfd, *argv)
+    assert code == 2 and not out
+    one_error_line(err)
+    assert option in err
+
+
+# ------------------------------------------------------------------------------------------
 # --version
 
 def test_version_names_pinlin_and_its_libraries(capfd):

@@ -549,6 +549,9 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    elif saturated.any() and np.any(~ok[:int(np.argmax(saturated))]):",
         "    elif False:",
         "validity fits an order to errors that jump from the noise to parted motions"),
+    'cli_numbers_with_underscores': (
+        'pinlin/cli_format.py', '    if "_" in text or not text.isascii():', '    if False:',
+        "the command line reads 1_0 as 10 (Python's float)"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
