@@ -33,6 +33,7 @@ import scipy.linalg as sla
 
 from .conditioning import AccuracyWarning
 from .exceptions import ArgumentError, ModelError
+from .fields import show
 
 METHODS = ("zoh", "euler")
 #: A zero-order hold whose estimated relative error (:func:`zoh_rounding`) exceeds this gets
@@ -55,7 +56,7 @@ def check_step(dt: object, method: object) -> float:
             not isinstance(dt, int | float | np.integer | np.floating) \
             or not 0 < (float(dt) if isinstance(dt, np.floating) else dt) <= FLOAT_MAX:
         # (an int beyond float64 compares exactly; a float32 compared as itself would warn)
-        raise ArgumentError("dt", f"expected a sample time > 0 [s], got {dt!r:.60}")
+        raise ArgumentError("dt", f"expected a sample time > 0 [s], got {show(dt)}")
     if float(dt) < FLOAT_TINY:
         raise ArgumentError("dt", f"{float(dt)!r} s is subnormal (fewer than 53 significant "
                                   "bits: A dt and B dt would lose their digits); expected a "

@@ -90,6 +90,8 @@ def show(x: Any) -> str:
     integers too long for ``str()``, control characters escaped."""
     if isinstance(x, int) and not isinstance(x, bool) and x.bit_length() > 128:
         return f"an integer of about {int(x.bit_length() * math.log10(2)) + 1} digits"
+    if isinstance(x, np.ndarray) and (x.ndim > 1 or x.size > 6):   # repr: lines, or long
+        return f"an array of shape {x.shape} ({x.dtype})"
     try:
         text = _REPR.repr(x)
     except Exception:  # a failing __repr__, a huge integer inside a container, ...

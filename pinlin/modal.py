@@ -54,6 +54,7 @@ from numpy.linalg import LinAlgError
 from . import eigensolvers as es
 from . import modal_table
 from .exceptions import ArgumentError, ModelError, PinlinError
+from .fields import show
 from .linear_model import LinearModel
 from .modal_input import check_entries, check_rigid_tol
 
@@ -299,8 +300,8 @@ class ModalAnalysis:
         if isinstance(index, bool) or not isinstance(index, int | np.integer) \
                 or not 0 <= index < n:
             raise ArgumentError("index", f"expected an eigenvalue index from 0 to {n - 1}, got "
-                                         f"{index!r:.40}" if n else
-                                f"model '{self.model.name}' has no eigenvalue, got {index!r:.40}")
+                                         f"{show(index)}" if n else
+                                f"model '{self.model.name}' has no eigenvalue, got {show(index)}")
         return int(index)
 
     def modes(self) -> list[int]:

@@ -112,7 +112,7 @@ def _check_dpi(dpi: object) -> float:
     if isinstance(dpi, bool) or not isinstance(dpi, int | float | np.integer | np.floating) \
             or not DPI_MIN <= dpi <= DPI_MAX:
         raise ArgumentError("dpi", f"expected a resolution from {DPI_MIN} to {DPI_MAX} dots per "
-                                   f"inch, got {dpi!r:.40}")
+                                   f"inch, got {show(dpi)}")
     return float(dpi)
 
 

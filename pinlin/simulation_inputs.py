@@ -20,6 +20,7 @@ import numpy as np
 from .arrays import real_array
 from .closed_loop import designed_gain
 from .exceptions import ArgumentError, PinlinError
+from .fields import show
 from .operating_point import OperatingPoint
 from .signals import Signal
 
@@ -88,7 +89,7 @@ class Inputs:
                                                f"numbers (at t = {t:g} s)").reshape(-1)
         if du.size != self.u0.size or not np.all(np.isfinite(du)):
             raise ArgumentError("u", f"u(t) must return {self.u0.size} finite numbers, got "
-                                     f"{du!r:.80} at t = {t:g} s")
+                                     f"{show(du)} at t = {t:g} s")
         return self.u0 + du
 
     def close_loop(self, feedback: object, columns: np.ndarray, nv: int, x0: np.ndarray,

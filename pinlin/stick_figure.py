@@ -46,6 +46,7 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import ArgumentError, AssemblyError, ModelError
+from .fields import show
 from .modal import ModalAnalysis
 
 #: The default amplitude moves the figure's farthest-moving point by this fraction of its size.
@@ -457,7 +458,7 @@ def mode_motion(scene: object, modes: ModalAnalysis, index: int, *,
                 or not (np.isfinite(amplitude) and 0 < amplitude <= MAX_AMPLITUDE):
             raise ArgumentError("amplitude", f"expected an amplitude > 0 and <= "
                                              f"{MAX_AMPLITUDE:g} [rad or m], got "
-                                             f"{amplitude!r:.40}")
+                                             f"{show(amplitude)}")
         tries = [float(amplitude)]
     else:
         a = readable_amplitude(skeleton, q0, dq)

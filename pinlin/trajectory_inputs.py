@@ -15,6 +15,7 @@ import pinocchio as pin
 from .arrays import non_numbers
 from .derivatives import BACKENDS, resolve_steps
 from .exceptions import ArgumentError, ResourceError, ShapeError
+from .fields import show
 from .resources import check_memory
 from .system import System
 
@@ -120,7 +121,7 @@ def times(t: object, points: int) -> np.ndarray | None:
         arr = None
     if arr is None or arr.shape != (points,):
         raise ArgumentError("t", f"expected {points} times [s] (one per point), got "
-                                 f"{t!r:.80}")
+                                 f"{show(t)}")
     if not np.isfinite(arr).all():
         raise ArgumentError("t", f"entry {int(np.argmin(np.isfinite(arr)))} is NaN or inf")
     step = np.diff(arr)

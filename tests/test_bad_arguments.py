@@ -212,3 +212,23 @@ def test_an_empty_system_name_is_named_as_the_command_line_calls_it(argv, argume
     _, err = capfd.readouterr()
     assert code == 2 and err.startswith(f"pinlin: error: argument '{argument}': ")
     assert err.count("\n") == 1 and not (tmp_path / "r").exists()
+
+
+def _model(name: str = "double_pendulum") -> pinlin.LinearModel:
+    return pinlin.linearize(pinlin.Scene.load(URDF_DIR / f"{name}.toml"))
+
+
+@pytest.mark.parametrize("call, argument", [
+    (lambda: pinlin.linearize_trajectory(pinlin.Scene.load(URDF_DIR / "double_pendulum.toml"),
+                                         np.zeros((3, 2)), np.zeros((3, 2)), np.zeros((3, 2)),
+                                         t=np.zeros((3, 1))), "t"),
+    (lambda: _model().discretize(np.full((2, 2), 0.01)), "dt"),
+    (lambda: pinlin.modal(_model()).dominant(np.zeros((2, 2), dtype=int)), "index"),
+])
+def test_an_array_in_a_message_is_its_shape_on_one_line(call, argument):
+    """A 2-D array where a number or a list was expected was shown by its repr, which numpy
+    breaks over lines ("got array([[0.],\\n       [0.], ..."): now by its shape."""
+    with pytest.raises(pinlin.ArgumentError) as exc:
+        call()
+    assert exc.value.argument == argument
+    assert "\n" not in str(exc.value) and "an array of shape (" in str(exc.value)

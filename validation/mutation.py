@@ -552,6 +552,9 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     'cli_numbers_with_underscores': (
         'pinlin/cli_format.py', '    if "_" in text or not text.isascii():', '    if False:',
         "the command line reads 1_0 as 10 (Python's float)"),
+    'array_repr_in_messages': (
+        'pinlin/fields.py', "    if isinstance(x, np.ndarray) and (x.ndim > 1 or x.size > 6):",
+        "    if False:", "a user's array is shown in an error message by numpy's multi-line repr"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
