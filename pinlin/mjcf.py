@@ -186,6 +186,11 @@ def _build(system, dt: float, impedance: float, visual: bool) -> MujocoScene:
     if system.rotation is not None:
         raise MujocoError(f"scene '{scene.name}': steady rotation has no MuJoCo counterpart "
                           "(MuJoCo integrates in an inertial frame)")
+    planar = [name for name, j in system.joints.items() if j.kind == "JointModelPlanar"]
+    if planar:
+        raise MujocoError(f"scene '{scene.name}': joint '{planar[0]}' is planar, which MuJoCo "
+                          "imports as two slides and a hinge (coordinates other than "
+                          "Pinocchio's SE(2) configuration): it has no MuJoCo counterpart here")
     text = strip_urdf(system.urdf_path.read_text(encoding="utf-8"))
     free = system.base_joint is not None
     try:

@@ -396,3 +396,28 @@ def test_names_xml_escapes_keep_full_precision(tmp_path):
     assert 'name="j&amp;1"' in text and 'stiffness="10.123456789"' in text
     m = mujoco.MjModel.from_xml_path(str(out))
     assert m.jnt_stiffness[0] == 10.123456789
+
+
+PLANAR = """<?xml version="1.0"?>
+<robot name="planar_bot">
+  <link name="world_link"/>
+  <link name="body"><inertial><origin xyz="0.1 0.05 0"/><mass value="2.0"/>
+    <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.04"/></inertial></link>
+  <joint name="slide" type="planar"><parent link="world_link"/><child link="body"/>
+    <axis xyz="0 0 1"/></joint>
+</robot>"""
+
+
+def test_a_planar_joint_is_refused_as_planar(tmp_path, capfd):
+    """MuJoCo imports a URDF planar joint as slides and a hinge of its own names: the
+    refusal said the joint 'slide_TX' was locked in a reduced model, which the scene is not."""
+    urdf = tmp_path / "planar.urdf"
+    urdf.write_text(PLANAR)
+    scene = pinlin.Scene.from_urdf(urdf, name="planar_bot", base="fixed",
+                                   operating_point={"solve": "inputs"})
+    assert pinlin.linearize(scene).A.shape == (6, 6)
+    with pytest.raises(mjcf.MujocoError, match="joint 'slide' is planar.*no MuJoCo counterpart"):
+        mjcf.build(scene.system)
+    assert main(["export-mjcf", str(urdf), "-o", str(tmp_path / "p.xml")]) == 2
+    err = capfd.readouterr().err
+    assert "joint 'slide' is planar" in err and "locked" not in err
