@@ -932,3 +932,16 @@ def test_a_frequency_response_too_large_for_memory_is_refused_before_it_allocate
     # Within the limit it runs: the estimate does not refuse what fits.
     with pinlin.resources.memory_limit_override("100M"):
         assert pinlin.frequency_response(model, w[:1000]).H.shape[0] == 1000
+
+
+def test_a_subnormal_step_advances_by_the_series_of_phi1():
+    """A time step of 1e-310 s (subnormal): e^{lam h} - 1 over lam h was inf / NaN there, and
+    the modal response was refused as leaving float64's range. Over such a step the pendulum
+    moves by its acceleration: v = A[1, 0] q0 h (closed form, h^2 terms far below)."""
+    model = _model("pendulum")
+    for h in (1e-310, 1e-300, 1e-9):
+        for method in ("modal", "exact"):
+            x = pinlin.response(model, [0.0, h], [0.1, 0.0], method=method).x[-1]
+            assert x[0] == pytest.approx(0.1, rel=1e-15)
+            # subnormals near 1e-310 keep ~13 digits
+            assert x[1] == pytest.approx(model.A[1, 0] * 0.1 * h, rel=1e-9)

@@ -555,6 +555,9 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     'array_repr_in_messages': (
         'pinlin/fields.py', "    if isinstance(x, np.ndarray) and (x.ndim > 1 or x.size > 6):",
         "    if False:", "a user's array is shown in an error message by numpy's multi-line repr"),
+    'phi1_without_series': (
+        'pinlin/response.py', "    far = np.abs(z) >= PHI1_SERIES\n", "    far = z != 0\n",
+        "the modal response divides expm1(z) by a subnormal z (a step of 1e-310 s)"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
