@@ -214,10 +214,39 @@ def pair_conditions(k2: np.ndarray, wi: np.ndarray) -> np.ndarray:
     return kappa
 
 
+def rounding_shift(kappa: np.ndarray, gaps: np.ndarray, delta: float, frobenius: float
+                   ) -> np.ndarray:
+    """How far a perturbation of size ``delta`` can move eigenvalues of condition ``kappa``
+    (``gaps`` (n, 2): the distances to their nearest and second nearest other eigenvalue):
+    kappa delta (first order), but at most the reach of a coalescing pair where no third
+    eigenvalue is near. A pair's 2 x 2 Schur block [[l1, s], [0, l2]] (gap g = |l1 - l2|),
+    perturbed by E of size delta, has eigenvalues apart by about
+    sqrt((g + 2 delta)^2 + 4 (s + delta) delta), so each moves by at most
+    sqrt((s + delta) delta) + delta with s <= |A|_F (the block is part of a unitary
+    similarity of A): sqrt(eps) for a defective pair (a critically damped mode's double
+    eigenvalue moves by ~1e-8, not by kappa eps ~ 1 as first order says), while kappa delta
+    stays the smaller wherever the pair is apart. Three that coalesce move by delta^(1/3),
+    further: the cap is taken only where the second nearest lies beyond twice the reach."""
+    first = kappa * delta
+    reach = math.sqrt((frobenius + delta) * delta) + delta
+    return np.where(gaps[:, 1] > 2.0 * reach, np.minimum(first, reach), first)
+
+
+def nearest_gaps(lam: np.ndarray) -> np.ndarray:
+    """(n, 2): for each eigenvalue, the distances to its nearest and second nearest other
+    one (inf where there is none)."""
+    d = np.abs(lam[:, None] - lam[None, :])
+    np.fill_diagonal(d, math.inf)
+    d = np.hstack([d, np.full((lam.size, 2), math.inf)])
+    return np.sort(d, axis=1)[:, :2]
+
+
 def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
                      magnitudes: np.ndarray, n_rigid: int, a2: float | None = None) -> None:
     """AccuracyWarning when rounding in A (eps max|A|) can move a non-rigid eigenvalue by
-    more than EIGENVALUE_RISK of itself: kappa eps max|A| / |lam| > 1e-6 (``vr``, ``wi``,
+    more than EIGENVALUE_RISK of itself: kappa eps max|A| / |lam| > 1e-6, or where the
+    eigenvalue and its nearest neighbour coalesce under it, the pair's shift
+    (:func:`rounding_shift`) / |lam| > 1e-6 (``vr``, ``wi``,
     ``magnitudes`` |lam|: in dgeev's order; the first ``n_rigid`` sorted eigenvalues are rigid;
     ``a2``: |A|_F^2 if known).
 
@@ -244,7 +273,10 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
             return
         scale = _EPS * float(np.abs(A).max())
         kappa = pair_conditions(k2, wi)[moving]
-        risk = kappa * scale / magnitudes[moving]
+        lam = np.empty(order.size, dtype=complex)
+        lam[order] = result.eigenvalues                 # dgeev's order
+        risk = rounding_shift(kappa, nearest_gaps(lam)[moving], scale,
+                              frobenius) / magnitudes[moving]
         worst = int(np.argmax(risk))        # a NaN wins argmax, and fails both tests below
         ratio = float(risk[worst]) / EIGENVALUE_RISK
         margin = risk_margin(k2_moving, k2.size)
@@ -256,7 +288,9 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
     scale = _EPS * float(np.abs(A).max())
     ok = ~result.rigid
     kappa = result.condition[ok]
-    risk = kappa * scale / result.wn[ok]
+    frobenius = math.sqrt(float(np.vdot(A, A)))
+    risk = rounding_shift(kappa, nearest_gaps(result.eigenvalues)[ok], scale,
+                          frobenius) / result.wn[ok]
     worst = int(np.argmax(risk))
     if risk[worst] > EIGENVALUE_RISK:
         warn(result, int(np.flatnonzero(ok)[worst]), float(kappa[worst]), float(risk[worst]))

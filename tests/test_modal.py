@@ -431,3 +431,30 @@ def test_kinds_and_stability_need_no_condition_numbers_on_robots(name, state):
     kinds = [modes.kind(i) for i in modes.modes()]
     assert modes.is_stable in (True, False) and kinds
     assert "condition" not in modes.__dict__
+
+
+@pytest.mark.parametrize("w", [1.0, 10.0])
+def test_a_critically_damped_mode_is_not_called_at_risk(w):
+    """A = [[0, 1], [-w^2, -2 w]] has the double eigenvalue -w (a Jordan block): its computed
+    condition number is ~1/eps, and first order said rounding could move it by ~1 (2.8 of
+    itself at w = 1). The pair moves by ~sqrt(eps): measured here by perturbing A's corner by
+    eps max|A| (numpy's eigvals, the reference), 1e-8 of |lam|, under the 1e-6 that warns.
+    (At w = 1e3 A's entries span 1 to 1e6 and a perturbation of norm eps 1e6 in the worst
+    direction moves the pair by sqrt(|A|_F eps 1e6) = 1.5e-5 of itself: said, as any
+    norm-wise risk is.)"""
+    A = np.array([[0.0, 1.0], [-w * w, -2.0 * w]])
+    model = pinlin.LinearModel(A=A, B=[[0.0], [1.0]], C=np.eye(2), D=np.zeros((2, 1)),
+                               state_names=("q:a", "v:a"), input_names=("u:a",),
+                               output_names=("q:a", "v:a"), name="critical")
+    E = np.zeros((2, 2))
+    E[1, 0] = np.finfo(float).eps * np.abs(A).max()
+    moved = np.abs(np.linalg.eigvals(A + E) + w).max() / w
+    assert 1e-9 < moved < 1e-7
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", pinlin.AccuracyWarning)
+        modes = pinlin.modal(model)
+    assert np.allclose(modes.eigenvalues, -w, rtol=1e-6)
+    # A defective pair beside a fast mode (max|A| = 1600) can move by sqrt(|A| eps |A|_F)
+    # ~ 2e-5 of itself: still said.
+    with pytest.warns(pinlin.AccuracyWarning, match="may move it by 2.*e-05"):
+        pinlin.modal(_near_defective(0.0))

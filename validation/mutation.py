@@ -558,6 +558,11 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
     'phi1_without_series': (
         'pinlin/response.py', "    far = np.abs(z) >= PHI1_SERIES\n", "    far = z != 0\n",
         "the modal response divides expm1(z) by a subnormal z (a step of 1e-310 s)"),
+    'defective_pair_first_order': (
+        'pinlin/eigensolvers.py',
+        "    return np.where(gaps[:, 1] > 2.0 * reach, np.minimum(first, reach), first)",
+        "    return first",
+        "modal's accuracy warning takes first order for a defective pair (critical damping)"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
