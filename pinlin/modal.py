@@ -57,6 +57,7 @@ from .exceptions import ArgumentError, ModelError, PinlinError
 from .fields import show
 from .linear_model import LinearModel
 from .modal_input import check_entries, check_rigid_tol
+from .modal_table import RIGID_RTOL
 
 if TYPE_CHECKING:
     from .modal_coordinates import ModalCoordinates
@@ -64,7 +65,6 @@ if TYPE_CHECKING:
     from .scene import Scene
 
 METHODS = ("auto", "symmetric", "general")
-RIGID_RTOL = 1e-6
 SYMMETRY_RTOL = 1e-8
 _EPS = float(np.finfo(float).eps)
 _TINY = float(np.finfo(float).tiny)

@@ -24,6 +24,11 @@ import numpy as np
 if TYPE_CHECKING:
     from .modal import ModalAnalysis
 
+#: Default relative threshold [-]: an eigenvalue with |lam| <= RIGID_RTOL max(1, max |lam|)
+#: [rad/s] is a rigid-body mode (:func:`pinlin.modal`'s rigid_tol; the penalty error estimate
+#: leaves the same modes out).
+RIGID_RTOL = 1e-6
+
 
 def oscillates(analysis: ModalAnalysis, index: int) -> bool:
     """:meth:`ModalAnalysis.oscillates` of ``analysis`` (documented there, in

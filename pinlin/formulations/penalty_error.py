@@ -34,13 +34,11 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..conditioning import AccuracyWarning
-from ..modal_table import constraint_columns
+from ..modal_table import RIGID_RTOL, constraint_columns
 
 #: A penalty or canonical model warns where :func:`penalty_error` exceeds this: its physical
 #: eigenvalues are off in their third digit or worse.
 PENALTY_WARN = 1e-3
-#: Relative threshold below which an eigenvalue is a rigid-body mode (as pinlin.modal's default).
-RIGID_RTOL = 1e-6
 
 
 def penalty_error(A: np.ndarray, A_double: np.ndarray, G: np.ndarray, alpha: float,
