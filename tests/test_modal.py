@@ -448,8 +448,11 @@ def test_a_critically_damped_mode_is_not_called_at_risk(w):
                                output_names=("q:a", "v:a"), name="critical")
     E = np.zeros((2, 2))
     E[1, 0] = np.finfo(float).eps * np.abs(A).max()
+    # (each moves by sqrt(eps max|A|) / w exactly: 2.1e-8 at w = 1, 1.5e-8 at w = 10,
+    # measured 2.1e-8 at both; the eigensolver's own backward error is of that order, so
+    # only the bound is asserted)
     moved = np.abs(np.linalg.eigvals(A + E) + w).max() / w
-    assert 1e-9 < moved < 1e-7
+    assert moved < 1e-7
     with warnings.catch_warnings():
         warnings.simplefilter("error", pinlin.AccuracyWarning)
         modes = pinlin.modal(model)
