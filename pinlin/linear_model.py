@@ -33,6 +33,7 @@ from .exceptions import ArgumentError, PinlinError, ShapeError
 from .fields import clean, show
 from .files import as_path, check_file_target, write_bytes_atomic
 from .model_checks import (
+    check_drift,
     check_finite,
     check_point_sizes,
     check_second_order,
@@ -139,6 +140,7 @@ class LinearModel:
             raise ArgumentError("operating_point", "expected an OperatingPoint or None, got "
                                                    f"{type(self.operating_point).__name__}")
         check_point_sizes(self)
+        check_drift(self)
         if not isinstance(self.info, Mapping):
             raise ArgumentError("info", f"expected a mapping, got {type(self.info).__name__}")
         object.__setattr__(self, "info", dict(self.info))

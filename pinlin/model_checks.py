@@ -224,6 +224,34 @@ def check_point_sizes(model: LinearModel) -> None:
                          "velocity)")
 
 
+def check_drift(model: LinearModel) -> None:
+    """Refuse a continuous model whose drift's upper half is not the operating point's
+    velocity: with states [q:...; v:...] over all of v's coordinates (an open chain, or a
+    penalty model's dependent coordinates), x = [dq; v - v0] gives dq' = v0 at the point
+    (the chart's derivative is the identity there), so f0[:n/2] = v0, as pinlin builds it
+    (a copy). A model with other states (a mechanism's independent ones, a canonical model's
+    momenta) or none of v is not checked. Rounding of a copy made elsewhere is allowed
+    (1e-12 of the larger).
+
+    Raises:
+        ModelError: naming the model and the largest difference.
+    """
+    op, f0, half = model.operating_point, model.f0, model.n_states // 2
+    if f0 is None or op is None or op.v is None or model.dt or np.size(op.v) != half:
+        return
+    names = model.state_names
+    if not (all(n.startswith("q:") for n in names[:half])
+            and all(n.startswith("v:") for n in names[half:])):
+        return
+    v, upper = np.asarray(op.v, dtype=float), f0[:half]
+    gap = float(np.abs(upper - v).max(initial=0.0))
+    if gap > 1e-12 * max(float(np.abs(v).max(initial=0.0)),
+                         float(np.abs(upper).max(initial=0.0))):
+        raise ModelError(f"model '{model.name}': the upper half of f0 is dq' = v0 at the "
+                         f"operating point, but differs from operating_point.v by {gap:.3g} "
+                         "(rad/s or m/s); give the drift of this point's velocity")
+
+
 def check_finite(fields: Mapping[str, Any], model: str) -> None:
     """Refuse NaN or inf in any matrix present.
 

@@ -296,3 +296,25 @@ def test_euler_discretization_matches_mujoco_at_a_moving_state(robot, seed):
     disc = model.discretize(ms.dt, "euler")
     np.testing.assert_allclose(disc.A, A_mj, rtol=0, atol=1e-8)
     np.testing.assert_allclose(disc.B, B_mj, rtol=0, atol=1e-10 * np.abs(B_mj).max())
+
+
+def test_a_drift_that_is_not_the_points_velocity_is_refused(tmp_path):
+    """x = [dq; v - v0] gives dq' = v0 at the point, so a moving model's f0 begins with v0
+    (pinlin copies it). A model file whose f0 was edited there loaded, and its response and
+    the simulation it is compared with (from operating_point.v) described other motions."""
+    scene = pinlin.Scene.from_robot("ur5")
+    rng = np.random.default_rng(71)
+    q, v, u = rng.uniform(-1.0, 1.0, (3, 6))
+    model = pinlin.linearize(scene, q=q, v=v, u=u)
+    np.testing.assert_array_equal(model.f0[:6], model.operating_point.v)
+    back = pinlin.LinearModel.load(model.save(tmp_path / "good.npz"))
+    np.testing.assert_array_equal(back.f0, model.f0)
+    fields = dict(np.load(tmp_path / "good.npz", allow_pickle=False))
+    f0 = fields["f0"].copy()      # stored as a column
+    f0.reshape(-1)[2] += 0.5
+    fields["f0"] = f0
+    np.savez(tmp_path / "bad.npz", **fields)
+    with pytest.raises(pinlin.ModelFileError, match=r"bad\.npz: .*upper half of f0 is dq' = "
+                                                    r"v0 .* differs from operating_point\.v "
+                                                    r"by 0\.5"):
+        pinlin.LinearModel.load(tmp_path / "bad.npz")

@@ -563,6 +563,9 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    return np.where(gaps[:, 1] > 2.0 * reach, np.minimum(first, reach), first)",
         "    return first",
         "modal's accuracy warning takes first order for a defective pair (critical damping)"),
+    'drift_velocity_unchecked': (
+        'pinlin/linear_model.py', "        check_drift(self)\n", "",
+        "a model file's drift f0 loads whatever its dq' = v0 half says"),
     'validity_amplitude_in_metres': (
         'pinlin/validity.py', "length, w = _unit_weights(system, model)",
         "length, w = _unit_weights(system, model)\n    w = np.ones_like(w)",
