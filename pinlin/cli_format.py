@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .exceptions import ArgumentError
+from .fields import written_float
 
 if TYPE_CHECKING:
     from .coordinates import JointInfo
@@ -33,12 +34,9 @@ def options_named(options: dict[str, str]) -> Iterator[None]:
 
 
 def strict_float(text: str) -> float:
-    """A number given on the command line: what ``float`` reads, but for the underscores
-    and non-ASCII digits it also takes ("1_0" is 10 and "\u0663" is 3 to ``float``), which no
-    one means as a number here (a ValueError, as ``float``'s)."""
-    if "_" in text or not text.isascii():
-        raise ValueError(f"could not convert string to float: {text!r}")
-    return float(text)
+    """A number given on the command line (:func:`pinlin.fields.written_float`: no
+    underscores or non-ASCII digits; a ValueError, as ``float``'s)."""
+    return written_float(text)
 
 
 strict_float.__name__ = "float"   # argparse's message: "invalid float value: '1_0'"

@@ -78,6 +78,15 @@ _REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
 _BREAKING = ("Cc", "Cs", "Zl", "Zp")  # control, lone surrogate, line and paragraph separators
 
 
+def written_float(text: str) -> float:
+    """The number a person or a CSV writer means by ``text``: what ``float`` reads, but for
+    the underscores and non-ASCII digits it also takes ("1_0" is 10 and "\u0663" is 3 to
+    ``float``), which raise ValueError here as ``float``'s own refusals do."""
+    if "_" in text or not text.isascii():
+        raise ValueError(f"could not convert string to float: {text!r}")
+    return float(text)
+
+
 def clean(text: str) -> bool:
     """Whether ``text`` can appear in a one-line message: no control characters, line or
     paragraph separators, or lone surrogates (which no terminal encoding can print)."""

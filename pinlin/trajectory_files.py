@@ -41,6 +41,7 @@ from typing import IO, Any
 import numpy as np
 
 from .exceptions import ModelFileError, PinlinError
+from .fields import written_float
 from .files import HISTORY_MARKER, as_path, check_file_target, write_atomic
 
 # The readers of single-model files do the checking (npy headers, no pickles, MATLAB cells).
@@ -199,11 +200,7 @@ def csv_number(path: Path, where: str, cell: str) -> float:
     """The finite number in a CSV ``cell``; ``where`` ("line 3, column 'q:elbow'") names it
     in the error."""
     try:
-        # float() reads "1_0" as 10 and any script's digits ("\u0663" as 3): not numbers a
-        # CSV writes
-        if "_" in cell or not cell.isascii():
-            raise ValueError(cell)
-        value = float(cell)
+        value = written_float(cell)   # not float(): "1_0" is no number a CSV writes
     except ValueError:
         raise ModelFileError(path, f"{where}: {cell.strip()!r:.40} is not a number") from None
     if not math.isfinite(value):

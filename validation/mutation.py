@@ -550,8 +550,8 @@ MUTATIONS: dict[str, tuple[str, str, str, str]] = {
         "    elif False:",
         "validity fits an order to errors that jump from the noise to parted motions"),
     'cli_numbers_with_underscores': (
-        'pinlin/cli_format.py', '    if "_" in text or not text.isascii():', '    if False:',
-        "the command line reads 1_0 as 10 (Python's float)"),
+        'pinlin/fields.py', '    if "_" in text or not text.isascii():', '    if False:',
+        "the command line and CSV files read 1_0 as 10 (Python's float)"),
     'array_repr_in_messages': (
         'pinlin/fields.py', "    if isinstance(x, np.ndarray) and (x.ndim > 1 or x.size > 6):",
         "    if False:", "a user's array is shown in an error message by numpy's multi-line repr"),
