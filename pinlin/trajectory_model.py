@@ -219,7 +219,7 @@ class TrajectoryModel:
         k = int(k) % N
         q, v, u, a = self.q[k], self.v[k], self.u[k], _own(self.a[k])
         rest = bool(self.info.get("at_rest"))  # a schedule of rest points (rest_schedule)
-        moving = bool(_moving(self)[k])
+        moving = bool(_moving(self, slice(k, k + 1))[0])
         when = f" (t = {self.t[k]:.6g} s)" if self.t is not None else ""
         note = (f"point {k} of {N} of a schedule of rest points{when}: the inputs that hold q "
                 "were solved; the residual is not kept in a batch" if rest else
@@ -318,11 +318,11 @@ class TrajectoryModel:
         return load_trajectory_model(path, cls)
 
 
-def _moving(model: TrajectoryModel) -> np.ndarray:
-    """(N,) which points :meth:`TrajectoryModel.at` gives as moving (with their f0): a
-    velocity or acceleration, or constraint forces outside a schedule of rest points (a
-    falling point opted in)."""
-    moving = model.v.any(axis=1) | model.a.any(axis=1)
+def _moving(model: TrajectoryModel, rows: slice = slice(None)) -> np.ndarray:
+    """Which points (``rows``, default all) :meth:`TrajectoryModel.at` gives as moving (with
+    their f0): a velocity or acceleration, or constraint forces outside a schedule of rest
+    points (a falling point opted in)."""
+    moving = model.v[rows].any(axis=1) | model.a[rows].any(axis=1)
     if model.lam is not None and not model.info.get("at_rest"):
         moving = np.ones_like(moving)
     return moving
