@@ -114,23 +114,24 @@ def continuous_angles(system: System) -> np.ndarray:
 def spring_wraps(system: System, q0: np.ndarray, X: np.ndarray, t: np.ndarray) -> list[str]:
     """Notes on the springs of continuous joints whose deflection q - rest passed +-pi in the
     simulated states ``X`` (angles from ``q0`` in turns, :func:`continuous_angles`) at times
-    ``t`` [s]: such a spring acts on q - rest wrapped to (-pi, pi] (the joint's configuration
-    has no winding count, :func:`pinlin.operating_point`), so its force reverses there."""
+    ``t`` [s]: such a spring acts on difference(rest, q), wrapped to (-pi, pi] (the joint's
+    configuration has no winding count, :meth:`pinlin.System.spring_torque`), so its force
+    reverses there."""
+    turning = continuous_angles(system)
+    turning = turning[system.stiffness[turning] != 0.0]
+    if not turning.size:
+        return []
+    deflection = pin.difference(system.model, system.q_rest, q0)[turning] + X[:, turning]
     notes = []
-    for name, spring in (system.scene.effects.springs or {}).items():
-        j = system.joints.get(name)
-        if j is None or not (j.nv == 1 and j.nq == 2):
-            continue
-        c, s = q0[j.idx_q], q0[j.idx_q + 1]
-        gap = np.arctan2(s, c) - spring.rest
-        deflection = np.arctan2(np.sin(gap), np.cos(gap)) + X[:, j.idx_v]
-        beyond = np.flatnonzero(np.abs(deflection) > np.pi)
+    for column, i in enumerate(turning):
+        beyond = np.flatnonzero(np.abs(deflection[:, column]) > np.pi)
         if beyond.size:
             k = int(beyond[0])
-            notes.append(f"the spring on continuous joint '{name}' passed its wrap: q - rest "
-                         f"= {deflection[k]:.4g} rad at t = {t[k]:.4g} s, beyond pi, where "
-                         "the spring (acting on q - rest wrapped to (-pi, pi]) reverses its "
-                         "force; make the joint revolute for a wound spring")
+            notes.append(f"the spring on continuous joint '{system.coordinate_names[i]}' "
+                         f"passed its wrap: q - rest = {deflection[k, column]:.4g} rad at "
+                         f"t = {t[k]:.4g} s, beyond pi, where the spring (acting on q - rest "
+                         "wrapped to (-pi, pi]) reverses its force; make the joint revolute "
+                         "for a wound spring")
     return notes
 
 

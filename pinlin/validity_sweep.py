@@ -13,7 +13,7 @@ from .arrays import read_only
 from .exceptions import ModelError, PinlinError
 from .linear_model import LinearModel
 from .response import response
-from .simulation import simulate
+from .simulation import Simulation, simulate
 from .system import System
 from .validity_report import Bound, Case
 
@@ -47,30 +47,29 @@ class Sweep:
         self.n, self.names = model.n_states // 2, model.state_names
         self.w = np.concatenate([w, w])   # the weights of positions and velocities
         self.wraps: dict[float, str] = {}   # amplitude -> the first spring wrap it met
-        self.last_wraps: tuple[str, ...] = ()
         ref_lin = response(model, t, method="exact").x
         self.unit_lin = response(model, t, x0=d, method="exact").x - ref_lin
-        self.reference = self._simulate(np.zeros_like(d))
+        self.reference = np.asarray(self._simulate(np.zeros_like(d)).z)
         self.count = 1
         self.runs: dict[float, np.ndarray] = {}
         self.rows: dict[float, tuple[float, float, float, str]] = {}
 
-    def _simulate(self, x0: np.ndarray) -> np.ndarray:
+    def _simulate(self, x0: np.ndarray) -> Simulation:
         sim = simulate(self.system, self.t, dx0=x0, **self.options)
         if sim.independent_names != self.names:
             raise ModelError(f"the simulated coordinates {sim.independent_names} are not the "
                              f"linear model's {self.names}")
-        self.last_wraps = sim.info.get("spring_wraps", ())
-        return np.asarray(sim.z)
+        return sim
 
     def measure(self, a: float) -> float:
         """e at amplitude a (inf when the simulation fails); the row (e, e_q, e_v, failure)
         is kept."""
         self.count += 1
         try:
-            dnl = self._simulate(a * self.d) - self.reference
-            if self.last_wraps:
-                self.wraps[a] = self.last_wraps[0]
+            sim = self._simulate(a * self.d)
+            dnl = np.asarray(sim.z) - self.reference
+            if sim.info["spring_wraps"]:
+                self.wraps[a] = sim.info["spring_wraps"][0]
         except PinlinError as exc:
             self.rows[a] = (math.inf, math.inf, math.inf, str(exc))
             return math.inf
