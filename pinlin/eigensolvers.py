@@ -257,6 +257,8 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
     (:attr:`ModalAnalysis.condition`, a second ``dgeev``), so that a borderline case is settled
     exactly as the condition numbers a user reads would settle it."""
     A, order = result.model.A, result._order
+    frobenius = math.sqrt(a2 if a2 is not None and a2 < math.inf else np.vdot(A, A))
+    gaps = None   # nearest_gaps of the sorted eigenvalues, once past the cheap bound
     inv = inverse(vr)
     if inv is not None:
         # Squared row norms (einsum: no overflow warning where V^-1 is huge, inf then).
@@ -268,15 +270,12 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
         with (np.errstate(over="ignore") if magnitudes[moving[0]] <= 1e-150
               else contextlib.nullcontext()):
             worst_column = float((np.sqrt(k2_moving) / lam_moving).max())
-        frobenius = math.sqrt(a2 if a2 is not None and a2 < math.inf else np.vdot(A, A))
         if worst_column * _EPS * frobenius <= EIGENVALUE_RISK / RISK_MARGIN:   # False for NaN
             return
         scale = _EPS * float(np.abs(A).max())
         kappa = pair_conditions(k2, wi)[moving]
-        lam = np.empty(order.size, dtype=complex)
-        lam[order] = result.eigenvalues                 # dgeev's order
-        risk = rounding_shift(kappa, nearest_gaps(lam)[moving], scale,
-                              frobenius) / magnitudes[moving]
+        gaps = nearest_gaps(result.eigenvalues)         # sorted: moving[j] is n_rigid + j
+        risk = rounding_shift(kappa, gaps[n_rigid:], scale, frobenius) / magnitudes[moving]
         worst = int(np.argmax(risk))        # a NaN wins argmax, and fails both tests below
         ratio = float(risk[worst]) / EIGENVALUE_RISK
         margin = risk_margin(k2_moving, k2.size)
@@ -288,9 +287,9 @@ def warn_if_at_risk(result: ModalAnalysis, vr: np.ndarray, wi: np.ndarray,
     scale = _EPS * float(np.abs(A).max())
     ok = ~result.rigid
     kappa = result.condition[ok]
-    frobenius = math.sqrt(float(np.vdot(A, A)))
-    risk = rounding_shift(kappa, nearest_gaps(result.eigenvalues)[ok], scale,
-                          frobenius) / result.wn[ok]
+    if gaps is None:
+        gaps = nearest_gaps(result.eigenvalues)
+    risk = rounding_shift(kappa, gaps[ok], scale, frobenius) / result.wn[ok]
     worst = int(np.argmax(risk))
     if risk[worst] > EIGENVALUE_RISK:
         warn(result, int(np.flatnonzero(ok)[worst]), float(kappa[worst]), float(risk[worst]))
