@@ -7,6 +7,7 @@ shares (see :mod:`pinlin.formulations.constrained`).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 import scipy.linalg as sla
@@ -21,6 +22,7 @@ from .constrained import (
     _alt,
     _info,
     _penalty_setup,
+    penalty_elimination,
     penalty_first_order,
     penalty_numeric_info,
 )
@@ -29,7 +31,9 @@ from .penalty_error import penalty_error
 
 
 def canonical_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.ndarray,
-                          Bu: np.ndarray, alpha: float, mu: float, omega: float
+                          Bu: np.ndarray, alpha: float, mu: float, omega: float,
+                          elimination: Callable[[float], tuple[np.ndarray, np.ndarray]]
+                          | None = None
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A, B of eq. 9.53 solved for y' (y = [p; q]) without factoring E.
 
@@ -38,11 +42,16 @@ def canonical_first_order(M: np.ndarray, C: np.ndarray, K: np.ndarray, G: np.nda
     come from the same stable block elimination as the penalty model (no M + alpha G^T G is
     ever factored); only K_p carries alpha explicitly, as the canonical state matrix must.
 
+    ``elimination``: :func:`~pinlin.formulations.constrained.penalty_elimination` of
+    (M, C, K, G, I) when the caller has it (to take the penalty model at other alphas too).
+
     Returns:
         A, B, M_p^-1 and the penalty model's A (the same spectrum, well scaled).
     """
     n = M.shape[0]
-    A_pen, Mp_inv = penalty_first_order(M, C, K, G, np.eye(n), alpha, mu, omega)
+    if elimination is None:
+        elimination = penalty_elimination(M, C, K, G, np.eye(n), mu, omega)
+    A_pen, Mp_inv = elimination(alpha)
     Mp_inv = Mp_inv[n:]
     minus_Mp_inv_CpT = penalty_first_order(M, C.T, K, G, np.zeros((n, 0)), alpha, mu,
                                            omega)[0][n:, n:]
@@ -119,9 +128,11 @@ def linearize_canonical(system, op: OperatingPoint, cp: ConstrainedPoint, *,
     n = system.nv
     G = cp.jacobian
     C = terms.C if terms.C is not None else np.zeros((n, n))
-    A, B, Mp_inv, A_pen = canonical_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega)
-    error = penalty_error(A_pen, penalty_first_order(terms.M, C, terms.K, G, S, 2.0 * alpha,
-                                                     mu, omega)[0], G, alpha, system.scene.name)
+    # One SVD and rotation of G for the model at alpha and the error estimate's 2 alpha.
+    elimination = penalty_elimination(terms.M, C, terms.K, G, np.eye(n), mu, omega)
+    A, B, Mp_inv, A_pen = canonical_first_order(terms.M, C, terms.K, G, S, alpha, mu, omega,
+                                                elimination)
+    error = penalty_error(A_pen, elimination(2.0 * alpha)[0], G, alpha, system.scene.name)
     gap = (_check_canonical_spectrum(A, A_pen, G, alpha, system.scene.name) if G.size
            else 0.0)
     alt = _alt(terms)
